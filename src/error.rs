@@ -1,0 +1,63 @@
+//! The crate's error type.
+
+use crate::expr::ParseError;
+use crate::triangulation::MAX_DIM;
+
+/// Everything that can go wrong in isomesh, as one typed error.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum Error {
+    /// An ambient dimension outside 1..=MAX_DIM.
+    #[error("ambient dimension {0} is not supported: isomesh handles 1 to {MAX_DIM}")]
+    Dimension(usize),
+    /// Two things that must have the same dimension do not.
+    #[error("dimension mismatch: {0}")]
+    DimensionMismatch(String),
+    /// A simplex that is not well formed, or whose dimension does not fit the request.
+    #[error("invalid simplex: {0}")]
+    InvalidSimplex(String),
+    /// A NaN or infinite value where a finite number is required.
+    #[error("non-finite value {value} at coordinate {index}")]
+    NonFinite {
+        /// Index of the offending coordinate.
+        index: usize,
+        /// The value itself.
+        value: f64,
+    },
+    /// A triangulation that cannot be built as asked (singular matrix, bad edge length...).
+    #[error("invalid triangulation: {0}")]
+    Triangulation(String),
+    /// A lattice coordinate too large for the compact key.
+    #[error("lattice coordinate {value} does not fit a {bits}-bit key field")]
+    KeyOverflow {
+        /// The coordinate.
+        value: i64,
+        /// Bits per coordinate in the key.
+        bits: u32,
+    },
+    /// A malformed equation, with its position.
+    #[error(transparent)]
+    Parse(#[from] ParseError),
+    /// A malformed or inconsistent spec file.
+    #[error("spec: {0}")]
+    Spec(String),
+    /// WGSL that naga rejects (a bug in the emitter: the message is naga's).
+    #[error("generated WGSL does not validate:\n{0}")]
+    Wgsl(String),
+    /// Input/output failure, with the path involved.
+    #[error("{0}")]
+    Io(String),
+}
+
+/// Shorthand for results carrying [`Error`].
+pub type Result<T, E = Error> = std::result::Result<T, E>;
+
+/// Checks that every value is finite, naming the first that is not.
+pub fn check_finite(values: &[f64]) -> Result<()> {
+    match values.iter().position(|v| !v.is_finite()) {
+        Some(index) => Err(Error::NonFinite {
+            index,
+            value: values[index],
+        }),
+        None => Ok(()),
+    }
+}

@@ -1,0 +1,252 @@
+//! Compact keys: a canonical simplex packed into a few 64-bit words, and a set of such keys
+//! stored in one flat arena (no allocation per simplex).
+
+use foldhash::fast::FixedState;
+use hashbrown::HashTable;
+use std::hash::BuildHasher;
+
+use super::simplex::{check_dim, Simplex};
+use crate::error::{Error, Result};
+
+/// Packs canonical l-simplices of R^d into `words()` u64 words: each base coordinate biased
+/// into `coord_bits` bits, then the part index of elements 1..d (d+1 is always in the last
+/// part) in ceil(log2(l+1)) bits each.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct KeyCodec {
+    d: usize,
+    l: usize,
+    coord_bits: u32,
+    part_bits: u32,
+    words: usize,
+}
+
+impl KeyCodec {
+    /// A codec for l-simplices of R^d with `coord_bits` (2..=32) bits per base coordinate.
+    pub fn new(d: usize, l: usize, coord_bits: u32) -> Result<Self> {
+        check_dim(d)?;
+        if l > d {
+            return Err(Error::InvalidSimplex(format!("no {l}-simplices in R^{d}")));
+        }
+        if !(2..=32).contains(&coord_bits) {
+            return Err(Error::InvalidSimplex(format!(
+                "coord_bits = {coord_bits}: must be 2 to 32"
+            )));
+        }
+        let part_bits = usize::BITS - l.leading_zeros();
+        let bits = d * coord_bits as usize + d * part_bits as usize;
+        Ok(KeyCodec {
+            d,
+            l,
+            coord_bits,
+            part_bits,
+            words: bits.div_ceil(64).max(1),
+        })
+    }
+
+    /// Number of u64 words per key.
+    #[inline]
+    pub fn words(&self) -> usize {
+        self.words
+    }
+
+    /// Packs `s` into `out[..words()]`; fails if a coordinate does not fit `coord_bits`.
+    #[inline]
+    pub fn encode(&self, s: &Simplex, out: &mut [u64]) -> Result<()> {
+        if s.ambient_dim() != self.d || s.dim() != self.l {
+            return Err(Error::InvalidSimplex(format!(
+                "codec for {}-simplices of R^{}, got a {}-simplex of R^{}",
+                self.l,
+                self.d,
+                s.dim(),
+                s.ambient_dim()
+            )));
+        }
+        let out = &mut out[..self.words];
+        out.fill(0);
+        let bias = 1i64 << (self.coord_bits - 1);
+        let mut w = BitWriter { out, pos: 0 };
+        for &c in s.base() {
+            let v = c as i64 + bias;
+            if v < 0 || v >= 2 * bias {
+                return Err(Error::KeyOverflow {
+                    value: c as i64,
+                    bits: self.coord_bits,
+                });
+            }
+            w.put(v as u64, self.coord_bits);
+        }
+        if self.part_bits > 0 {
+            let mut index = [0u8; 64];
+            for (p, &mask) in s.parts().iter().enumerate() {
+                let mut m = mask;
+                while m != 0 {
+                    index[m.trailing_zeros() as usize] = p as u8;
+                    m &= m - 1;
+                }
+            }
+            for &p in &index[..self.d] {
+                w.put(p as u64, self.part_bits);
+            }
+        }
+        Ok(())
+    }
+
+    /// Unpacks a key written by [`KeyCodec::encode`].
+    pub fn decode(&self, key: &[u64]) -> Simplex {
+        let bias = 1i64 << (self.coord_bits - 1);
+        let mut r = BitReader { words: key, pos: 0 };
+        let v0: Vec<i32> = (0..self.d)
+            .map(|_| (r.get(self.coord_bits) as i64 - bias) as i32)
+            .collect();
+        let mut parts = vec![0u64; self.l + 1];
+        parts[self.l] |= 1 << self.d;
+        for e in 0..self.d {
+            let p = if self.part_bits > 0 {
+                r.get(self.part_bits) as usize
+            } else {
+                0
+            };
+            parts[p] |= 1 << e;
+        }
+        Simplex::from_masks(&v0, &parts).expect("key decodes to a valid simplex")
+    }
+}
+
+struct BitWriter<'a> {
+    out: &'a mut [u64],
+    pos: usize,
+}
+
+impl BitWriter<'_> {
+    #[inline]
+    fn put(&mut self, v: u64, bits: u32) {
+        let (w, off) = (self.pos / 64, (self.pos % 64) as u32);
+        self.out[w] |= v << off;
+        if off + bits > 64 {
+            self.out[w + 1] |= v >> (64 - off);
+        }
+        self.pos += bits as usize;
+    }
+}
+
+struct BitReader<'a> {
+    words: &'a [u64],
+    pos: usize,
+}
+
+impl BitReader<'_> {
+    #[inline]
+    fn get(&mut self, bits: u32) -> u64 {
+        let (w, off) = (self.pos / 64, (self.pos % 64) as u32);
+        let mut v = self.words[w] >> off;
+        if off + bits > 64 {
+            v |= self.words[w + 1] << (64 - off);
+        }
+        self.pos += bits as usize;
+        if bits == 64 {
+            v
+        } else {
+            v & ((1u64 << bits) - 1)
+        }
+    }
+}
+
+/// A set of fixed-width keys kept in insertion order in one flat arena, indexed by a hash
+/// table of u32 positions: about `8 * words + 5` bytes per key, no allocation per key.
+#[derive(Clone)]
+pub struct KeySet {
+    words: usize,
+    arena: Vec<u64>,
+    table: HashTable<u32>,
+    hasher: FixedState,
+}
+
+impl KeySet {
+    /// An empty set of keys of `words` words.
+    pub fn new(words: usize) -> Self {
+        KeySet {
+            words,
+            arena: Vec::new(),
+            table: HashTable::new(),
+            hasher: FixedState::with_seed(0x1503_e5a1),
+        }
+    }
+
+    #[inline]
+    fn hash(&self, key: &[u64]) -> u64 {
+        self.hasher.hash_one(key)
+    }
+
+    /// Number of keys.
+    #[inline]
+    pub fn len(&self) -> usize {
+        self.arena.len() / self.words
+    }
+
+    /// Whether the set is empty.
+    #[inline]
+    pub fn is_empty(&self) -> bool {
+        self.arena.is_empty()
+    }
+
+    /// The key at insertion index `i`.
+    #[inline]
+    pub fn get(&self, i: usize) -> &[u64] {
+        &self.arena[i * self.words..(i + 1) * self.words]
+    }
+
+    /// The insertion index of `key`, if present.
+    pub fn find(&self, key: &[u64]) -> Option<usize> {
+        let h = self.hash(key);
+        let (arena, w) = (&self.arena, self.words);
+        self.table
+            .find(h, |&i| &arena[i as usize * w..(i as usize + 1) * w] == key)
+            .map(|&i| i as usize)
+    }
+
+    /// Inserts `key`; returns its index and whether it was new.
+    pub fn insert(&mut self, key: &[u64]) -> (usize, bool) {
+        debug_assert_eq!(key.len(), self.words);
+        let h = self.hash(key);
+        let w = self.words;
+        let KeySet {
+            arena,
+            table,
+            hasher,
+            ..
+        } = self;
+        let entry = table.entry(
+            h,
+            |&i| &arena[i as usize * w..(i as usize + 1) * w] == key,
+            |&i| hasher.hash_one(&arena[i as usize * w..(i as usize + 1) * w]),
+        );
+        match entry {
+            hashbrown::hash_table::Entry::Occupied(e) => (*e.get() as usize, false),
+            hashbrown::hash_table::Entry::Vacant(e) => {
+                let i = arena.len() / w;
+                arena.extend_from_slice(key);
+                e.insert(i as u32);
+                (i, true)
+            }
+        }
+    }
+
+    /// Reserves room for `additional` more keys.
+    pub fn reserve(&mut self, additional: usize) {
+        self.arena.reserve(additional * self.words);
+        let (arena, w, hasher) = (&self.arena, self.words, &self.hasher);
+        self.table.reserve(additional, |&i| {
+            hasher.hash_one(&arena[i as usize * w..(i as usize + 1) * w])
+        });
+    }
+
+    /// Keys in insertion order.
+    pub fn iter(&self) -> impl Iterator<Item = &[u64]> {
+        self.arena.chunks_exact(self.words)
+    }
+
+    /// Bytes held by the arena and the table.
+    pub fn memory_bytes(&self) -> usize {
+        self.arena.capacity() * 8 + self.table.allocation_size()
+    }
+}

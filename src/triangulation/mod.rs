@@ -1,0 +1,13 @@
+//! The ambient triangulation, never stored: simplices are permutahedral representations
+//! ([`Simplex`]), placed in R^d by a [`Triangulation`], hashed through compact keys
+//! ([`KeyCodec`], [`KeySet`]).
+
+mod geometry;
+mod key;
+mod simplex;
+
+pub use geometry::{
+    random_rotation, Offset, Triangulation, TriangulationBuilder, TriangulationKind,
+};
+pub use key::{KeyCodec, KeySet};
+pub use simplex::{Simplex, MAX_DIM};
