@@ -7,8 +7,10 @@
 //! - [`expr`]: the equation language: parser, derivatives, batch evaluation, WGSL emission,
 //!   spec files and presets.
 
+pub mod cpu;
 pub mod error;
 pub mod expr;
+pub mod gpu;
 pub mod linalg;
 pub mod triangulation;
 

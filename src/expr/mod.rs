@@ -1,5 +1,15 @@
-//! The equation language.
-/// placeholder
-#[derive(Debug, Clone, PartialEq, thiserror::Error)]
-#[error("parse")]
-pub struct ParseError;
+//! The equation language: one text form for f, parsed once into trees that evaluate on the
+//! CPU in batches ([`crate::cpu::program`]), differentiate symbolically, and emit WGSL
+//! ([`crate::gpu::wgsl`]); spec files and presets are written in it.
+
+pub mod ast;
+pub mod parser;
+pub mod presets;
+pub mod spec;
+pub mod system;
+
+pub use ast::{Expr, Op1, Op2};
+pub use parser::{parse_expr, parse_system, ErrorKind, ParseError, Scope};
+pub use presets::{preset, preset_names, preset_spec, PresetInfo, PRESETS};
+pub use spec::{Problem, Spec, TriangulationSpec};
+pub use system::{newton_project, ClosureFunction, EquationSystem, ImplicitFunction};

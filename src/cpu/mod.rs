@@ -1,0 +1,3 @@
+//! The CPU side: batch evaluation of compiled expressions.
+
+pub mod program;

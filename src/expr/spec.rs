@@ -1,0 +1,211 @@
+//! Spec files (TOML): the manifold, its seeds, box and triangulation. Unknown keys are errors.
+
+use std::collections::BTreeMap;
+
+use serde::Deserialize;
+
+use super::parser::Scope;
+use super::system::{newton_project, EquationSystem};
+use crate::error::{check_finite, Error, Result};
+use crate::triangulation::{Offset, Triangulation, TriangulationKind};
+
+/// A spec file as written.
+#[derive(Clone, Debug, Default, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct Spec {
+    /// d.
+    pub ambient_dim: usize,
+    /// Variable names (default x1..xd, plus x y z w when d <= 4).
+    pub variables: Option<Vec<String>>,
+    /// Named constants usable in equations.
+    #[serde(default)]
+    pub parameters: BTreeMap<String, f64>,
+    /// f_1..f_k, with k < d.
+    pub equations: Vec<String>,
+    /// Inequalities g(x) >= 0 bounding the manifold.
+    #[serde(default)]
+    pub boundary: Vec<String>,
+    /// Points near M (Newton-projected before use).
+    #[serde(default)]
+    pub seeds: Vec<Vec<f64>>,
+    /// Per-coordinate [lo, hi] box, for seed search, scans and non-compact manifolds.
+    #[serde(rename = "box")]
+    pub bbox: Option<Vec<[f64; 2]>>,
+    /// Triangulation settings.
+    pub triangulation: Option<TriangulationSpec>,
+}
+
+/// The `[triangulation]` table.
+#[derive(Clone, Debug, Default, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct TriangulationSpec {
+    /// "coxeter" (default), "freudenthal" or "custom".
+    pub kind: Option<String>,
+    /// Longest edge of a d-simplex.
+    pub edge: Option<f64>,
+    /// Seed of the random offset (default 1).
+    pub offset_seed: Option<u64>,
+    /// An explicit offset instead.
+    pub offset: Option<Vec<f64>>,
+    /// kind = "custom": vertex = matrix * v + offset.
+    pub matrix: Option<Vec<Vec<f64>>>,
+    /// Seed of an optional random rotation.
+    pub rotation_seed: Option<u64>,
+}
+
+/// Default edge when neither spec nor flags give one.
+pub const DEFAULT_EDGE: f64 = 0.1;
+
+impl TriangulationSpec {
+    /// Builds the triangulation of R^d this table describes.
+    pub fn build(&self, d: usize) -> Result<Triangulation> {
+        let kind: TriangulationKind = self.kind.as_deref().unwrap_or("coxeter").parse()?;
+        let mut b = match (kind, &self.matrix) {
+            (TriangulationKind::Custom, Some(m)) => Triangulation::custom(m.clone()),
+            (TriangulationKind::Custom, None) => {
+                return Err(Error::Spec("kind = \"custom\" needs a matrix".into()))
+            }
+            (_, Some(_)) => {
+                return Err(Error::Spec(
+                    "a matrix is only allowed with kind = \"custom\"".into(),
+                ))
+            }
+            (k, None) => Triangulation::builder(d, k).edge(self.edge.unwrap_or(DEFAULT_EDGE)),
+        };
+        if kind == TriangulationKind::Custom && self.edge.is_some() {
+            return Err(Error::Spec(
+                "kind = \"custom\" takes its scale from the matrix: remove edge".into(),
+            ));
+        }
+        b = match (&self.offset, self.offset_seed) {
+            (Some(_), Some(_)) => {
+                return Err(Error::Spec("give offset or offset_seed, not both".into()))
+            }
+            (Some(o), None) => b.offset(o.clone()),
+            (None, Some(s)) => b.offset_seed(s),
+            (None, None) if kind == TriangulationKind::Custom => b.offset_rule(Offset::Zero),
+            (None, None) => b,
+        };
+        if let Some(s) = self.rotation_seed {
+            b = b.rotation_seed(s);
+        }
+        let t = b.build()?;
+        if t.dim() != d {
+            return Err(Error::DimensionMismatch(format!(
+                "the triangulation matrix is {}-dimensional, ambient_dim is {d}",
+                t.dim()
+            )));
+        }
+        Ok(t)
+    }
+}
+
+/// A resolved problem: the function, where to start, where to look, how to triangulate.
+#[derive(Clone, Debug)]
+pub struct Problem {
+    /// A short name (preset name or spec file stem).
+    pub name: String,
+    /// f (and boundary).
+    pub system: EquationSystem,
+    /// Seeds on M (already projected).
+    pub seeds: Vec<Vec<f64>>,
+    /// The box, if any.
+    pub bbox: Option<Vec<[f64; 2]>>,
+    /// Triangulation settings.
+    pub triangulation: TriangulationSpec,
+}
+
+impl Problem {
+    /// Ambient dimension.
+    pub fn dim(&self) -> usize {
+        self.system.names().len()
+    }
+}
+
+/// Checks a box: d rows, finite, lo < hi.
+pub fn check_box(bbox: &[[f64; 2]], d: usize) -> Result<()> {
+    if bbox.len() != d {
+        return Err(Error::DimensionMismatch(format!(
+            "the box has {} rows, the ambient dimension is {d}",
+            bbox.len()
+        )));
+    }
+    for (i, [lo, hi]) in bbox.iter().enumerate() {
+        if !(lo.is_finite() && hi.is_finite() && lo < hi) {
+            return Err(Error::Spec(format!(
+                "box row {}: [{lo}, {hi}] must be finite with lo < hi",
+                i + 1
+            )));
+        }
+    }
+    Ok(())
+}
+
+impl Spec {
+    /// Parses TOML text.
+    pub fn from_toml(text: &str) -> Result<Spec> {
+        toml::from_str(text).map_err(|e| Error::Spec(e.to_string()))
+    }
+
+    /// Reads and parses a spec file.
+    pub fn from_file(path: &std::path::Path) -> Result<Spec> {
+        let text = std::fs::read_to_string(path)
+            .map_err(|e| Error::Io(format!("{}: {e}", path.display())))?;
+        Self::from_toml(&text)
+    }
+
+    /// Validates everything and compiles the equations; seeds are Newton-projected.
+    pub fn resolve(&self, name: &str) -> Result<Problem> {
+        let d = self.ambient_dim;
+        crate::triangulation::Simplex::vertex(&vec![0; d])?;
+        let mut scope = match &self.variables {
+            Some(names) => {
+                if names.len() != d {
+                    return Err(Error::DimensionMismatch(format!(
+                        "{} variable names for ambient_dim = {d}",
+                        names.len()
+                    )));
+                }
+                Scope::with_names(names)?
+            }
+            None => Scope::new(d),
+        };
+        for (n, v) in &self.parameters {
+            scope.add_parameter(n, *v)?;
+        }
+        let eqs: Vec<&str> = self.equations.iter().map(String::as_str).collect();
+        let bnd: Vec<&str> = self.boundary.iter().map(String::as_str).collect();
+        let mut system = EquationSystem::parse(&scope, &eqs, &bnd)?;
+        if let Some(names) = &self.variables {
+            system = EquationSystem::from_exprs(
+                names.clone(),
+                system.equations().to_vec(),
+                system.boundary().to_vec(),
+            )?;
+        }
+        if let Some(b) = &self.bbox {
+            check_box(b, d)?;
+        }
+        let mut seeds = Vec::new();
+        for (i, s) in self.seeds.iter().enumerate() {
+            if s.len() != d {
+                return Err(Error::DimensionMismatch(format!(
+                    "seed {} has {} coordinates, ambient_dim is {d}",
+                    i + 1,
+                    s.len()
+                )));
+            }
+            check_finite(s)?;
+            seeds.push(newton_project(&system, s, 1e-12)?);
+        }
+        let triangulation = self.triangulation.clone().unwrap_or_default();
+        triangulation.build(d)?;
+        Ok(Problem {
+            name: name.to_string(),
+            system,
+            seeds,
+            bbox: self.bbox.clone(),
+            triangulation,
+        })
+    }
+}

@@ -1,0 +1,335 @@
+//! A function f: R^d -> R^k as the library sees it: text equations compiled once (values,
+//! Jacobian, boundary), or a Rust closure; Newton projection onto f^-1(0); combinators.
+
+use std::sync::Arc;
+
+use super::ast::Expr;
+use super::parser::{check_counts, parse_expr_at, ParseError, Scope};
+use crate::cpu::program::{Program, Scratch};
+use crate::error::{check_finite, Error, Result};
+use crate::linalg::Lu;
+use crate::triangulation::random_rotation;
+
+/// What the tracer needs of f: R^d -> R^k.
+pub trait ImplicitFunction: Send + Sync {
+    /// d.
+    fn ambient_dim(&self) -> usize;
+    /// k, the number of equations.
+    fn codim(&self) -> usize;
+    /// f at n points (`points`: n rows of d) into `out` (n rows of k).
+    fn eval_batch(&self, points: &[f64], out: &mut [f64]);
+    /// The k x d Jacobian at `x`, row-major (default: central differences).
+    fn jacobian(&self, x: &[f64], out: &mut [f64]) {
+        let (d, k) = (self.ambient_dim(), self.codim());
+        let mut p = x.to_vec();
+        let (mut fp, mut fm) = (vec![0.0; k], vec![0.0; k]);
+        for c in 0..d {
+            let h = 1e-6 * x[c].abs().max(1.0);
+            p[c] = x[c] + h;
+            self.eval_batch(&p, &mut fp);
+            p[c] = x[c] - h;
+            self.eval_batch(&p, &mut fm);
+            p[c] = x[c];
+            for r in 0..k {
+                out[r * d + c] = (fp[r] - fm[r]) / (2.0 * h);
+            }
+        }
+    }
+    /// The equations as text-derived trees, when f has them (needed by the GPU backend).
+    fn system(&self) -> Option<&EquationSystem> {
+        None
+    }
+}
+
+/// A system of equations in the language, compiled for batch evaluation.
+#[derive(Clone, Debug)]
+pub struct EquationSystem {
+    names: Vec<String>,
+    equations: Vec<Expr>,
+    boundary: Vec<Expr>,
+    values: Arc<Program>,
+    jacobian: Arc<Program>,
+    boundary_values: Arc<Program>,
+}
+
+impl EquationSystem {
+    /// Parses `equations` (and `boundary` inequalities g >= 0) in `scope`; errors carry the
+    /// equation's number as their line.
+    pub fn parse(scope: &Scope, equations: &[&str], boundary: &[&str]) -> Result<Self> {
+        let eqs = equations
+            .iter()
+            .enumerate()
+            .map(|(i, t)| parse_expr_at(t, scope, i + 1))
+            .collect::<Result<Vec<_>, ParseError>>()?;
+        check_counts(eqs.len(), scope.dim, equations.len().max(1))?;
+        let bnd = boundary
+            .iter()
+            .enumerate()
+            .map(|(i, t)| parse_expr_at(t, scope, i + 1))
+            .collect::<Result<Vec<_>, ParseError>>()?;
+        Self::from_exprs(default_names(scope), eqs, bnd)
+    }
+
+    /// Parses equations in x1..xd (and x, y, z, w when d <= 4).
+    pub fn parse_simple(dim: usize, equations: &[&str]) -> Result<Self> {
+        Self::parse(&Scope::new(dim), equations, &[])
+    }
+
+    /// Builds from trees; `names` gives d.
+    pub fn from_exprs(
+        names: Vec<String>,
+        equations: Vec<Expr>,
+        boundary: Vec<Expr>,
+    ) -> Result<Self> {
+        let d = names.len();
+        crate::triangulation::Simplex::vertex(&vec![0; d.max(1)])?;
+        check_counts(equations.len(), d, 1)?;
+        if let Some(e) = equations.iter().chain(&boundary).find(|e| e.arity() > d) {
+            return Err(Error::DimensionMismatch(format!(
+                "an equation uses x{} in R^{d}",
+                e.arity()
+            )));
+        }
+        let mut jac = Vec::with_capacity(equations.len() * d);
+        for e in &equations {
+            for v in 0..d {
+                jac.push(e.diff(v));
+            }
+        }
+        Ok(EquationSystem {
+            values: Arc::new(Program::compile(&equations, d)),
+            jacobian: Arc::new(Program::compile(&jac, d)),
+            boundary_values: Arc::new(Program::compile(&boundary, d)),
+            names,
+            equations,
+            boundary,
+        })
+    }
+
+    /// Variable names, one per coordinate.
+    pub fn names(&self) -> &[String] {
+        &self.names
+    }
+
+    /// The equations f_1..f_k.
+    pub fn equations(&self) -> &[Expr] {
+        &self.equations
+    }
+
+    /// Boundary inequalities g_i(x) >= 0.
+    pub fn boundary(&self) -> &[Expr] {
+        &self.boundary
+    }
+
+    /// The compiled f.
+    pub fn values(&self) -> &Program {
+        &self.values
+    }
+
+    /// The compiled Jacobian (k x d outputs, row-major).
+    pub fn jacobian_program(&self) -> &Program {
+        &self.jacobian
+    }
+
+    /// The compiled boundary functions.
+    pub fn boundary_program(&self) -> &Program {
+        &self.boundary_values
+    }
+
+    /// Cartesian product: f(x) = 0 and g(y) = 0 on R^{d1 + d2}.
+    pub fn product(&self, other: &EquationSystem) -> Result<Self> {
+        let d1 = self.names.len();
+        let shift: Vec<Expr> = (0..other.names.len()).map(|i| Expr::Var(d1 + i)).collect();
+        let mut eqs = self.equations.clone();
+        eqs.extend(other.equations.iter().map(|e| e.substitute(&shift)));
+        let mut bnd = self.boundary.clone();
+        bnd.extend(other.boundary.iter().map(|e| e.substitute(&shift)));
+        Self::from_exprs(indexed_names(d1 + other.names.len()), eqs, bnd)
+    }
+
+    /// Embedding in R^d (d >= current): the extra coordinates are set to zero.
+    pub fn embed(&self, d: usize) -> Result<Self> {
+        let d0 = self.names.len();
+        if d < d0 {
+            return Err(Error::DimensionMismatch(format!(
+                "cannot embed R^{d0} in R^{d}"
+            )));
+        }
+        let mut eqs = self.equations.clone();
+        eqs.extend((d0..d).map(Expr::Var));
+        Self::from_exprs(indexed_names(d), eqs, self.boundary.clone())
+    }
+
+    /// The image under x -> R x for the seeded random rotation R: f'(x) = f(R^T x).
+    pub fn rotate(&self, seed: u64) -> Result<(Self, Vec<f64>)> {
+        let d = self.names.len();
+        let r = random_rotation(d, seed);
+        // (R^T x)_i = sum_j R[j][i] x_j
+        let subs: Vec<Expr> = (0..d)
+            .map(|i| {
+                (0..d).fold(Expr::Num(0.0), |acc, j| {
+                    Expr::add(acc, Expr::mul(Expr::Num(r[j * d + i]), Expr::Var(j)))
+                })
+            })
+            .collect();
+        let sys = Self::from_exprs(
+            self.names.clone(),
+            self.equations.iter().map(|e| e.substitute(&subs)).collect(),
+            self.boundary.iter().map(|e| e.substitute(&subs)).collect(),
+        )?;
+        Ok((sys, r))
+    }
+
+    /// The image under x -> x + t: f'(x) = f(x - t).
+    pub fn translate(&self, t: &[f64]) -> Result<Self> {
+        let d = self.names.len();
+        if t.len() != d {
+            return Err(Error::DimensionMismatch(format!(
+                "translation has {} coordinates, the system {d}",
+                t.len()
+            )));
+        }
+        check_finite(t)?;
+        let subs: Vec<Expr> = (0..d)
+            .map(|i| Expr::sub(Expr::Var(i), Expr::Num(t[i])))
+            .collect();
+        Self::from_exprs(
+            self.names.clone(),
+            self.equations.iter().map(|e| e.substitute(&subs)).collect(),
+            self.boundary.iter().map(|e| e.substitute(&subs)).collect(),
+        )
+    }
+
+    /// Whether `x` satisfies every boundary inequality g_i(x) >= 0.
+    pub fn inside_boundary(&self, x: &[f64]) -> bool {
+        if self.boundary.is_empty() {
+            return true;
+        }
+        let mut g = vec![0.0; self.boundary.len()];
+        self.boundary_values.eval(x, &mut g);
+        g.iter().all(|&v| v >= 0.0)
+    }
+}
+
+fn indexed_names(d: usize) -> Vec<String> {
+    (1..=d).map(|i| format!("x{i}")).collect()
+}
+
+fn default_names(scope: &Scope) -> Vec<String> {
+    let mut names = indexed_names(scope.dim);
+    for (n, i) in &scope.variables {
+        if *i < names.len() && names[*i].starts_with('x') && n.len() <= names[*i].len() {
+            names[*i] = n.clone();
+        }
+    }
+    names
+}
+
+impl ImplicitFunction for EquationSystem {
+    fn ambient_dim(&self) -> usize {
+        self.names.len()
+    }
+    fn codim(&self) -> usize {
+        self.equations.len()
+    }
+    fn eval_batch(&self, points: &[f64], out: &mut [f64]) {
+        SCRATCH.with(|s| self.values.eval_batch(points, out, &mut s.borrow_mut()));
+    }
+    fn jacobian(&self, x: &[f64], out: &mut [f64]) {
+        SCRATCH.with(|s| self.jacobian.eval_batch(x, out, &mut s.borrow_mut()));
+    }
+    fn system(&self) -> Option<&EquationSystem> {
+        Some(self)
+    }
+}
+
+thread_local! {
+    static SCRATCH: std::cell::RefCell<Scratch> = std::cell::RefCell::new(Scratch::default());
+}
+
+/// The signature of a closure usable as f: writes f(x) (k values) for one point x.
+pub type PointFn = dyn Fn(&[f64], &mut [f64]) + Send + Sync;
+
+/// f given as a Rust closure (CPU backend only: the GPU needs the equation language).
+pub struct ClosureFunction {
+    d: usize,
+    k: usize,
+    f: Box<PointFn>,
+}
+
+impl ClosureFunction {
+    /// Wraps `f`, which maps a point of R^d to k values.
+    pub fn new(
+        d: usize,
+        k: usize,
+        f: impl Fn(&[f64], &mut [f64]) + Send + Sync + 'static,
+    ) -> Result<Self> {
+        crate::triangulation::Simplex::vertex(&vec![0; d.max(1)])?;
+        check_counts(k, d, 1)?;
+        Ok(ClosureFunction {
+            d,
+            k,
+            f: Box::new(f),
+        })
+    }
+}
+
+impl ImplicitFunction for ClosureFunction {
+    fn ambient_dim(&self) -> usize {
+        self.d
+    }
+    fn codim(&self) -> usize {
+        self.k
+    }
+    fn eval_batch(&self, points: &[f64], out: &mut [f64]) {
+        for (p, o) in points
+            .chunks_exact(self.d)
+            .zip(out.chunks_exact_mut(self.k))
+        {
+            (self.f)(p, o);
+        }
+    }
+}
+
+/// Projects `x0` onto f^-1(0) by Gauss-Newton steps x <- x - J^T (J J^T)^-1 f(x) (the
+/// nearest-point step for a full-rank Jacobian); errors if it does not reach |f| <= tol.
+pub fn newton_project(f: &dyn ImplicitFunction, x0: &[f64], tol: f64) -> Result<Vec<f64>> {
+    let (d, k) = (f.ambient_dim(), f.codim());
+    if x0.len() != d {
+        return Err(Error::DimensionMismatch(format!(
+            "seed has {} coordinates, f takes {d}",
+            x0.len()
+        )));
+    }
+    check_finite(x0)?;
+    let mut x = x0.to_vec();
+    let mut fx = vec![0.0; k];
+    let mut j = vec![0.0; k * d];
+    let mut jjt = vec![0.0; k * k];
+    for _ in 0..60 {
+        f.eval_batch(&x, &mut fx);
+        if fx.iter().any(|v| !v.is_finite()) {
+            break;
+        }
+        let norm = fx.iter().map(|v| v * v).sum::<f64>().sqrt();
+        if norm <= tol {
+            return Ok(x);
+        }
+        f.jacobian(&x, &mut j);
+        for r in 0..k {
+            for c in 0..k {
+                jjt[r * k + c] = (0..d).map(|t| j[r * d + t] * j[c * d + t]).sum();
+            }
+        }
+        let Some(lu) = Lu::new(&jjt, k) else { break };
+        let mut y = fx.clone();
+        lu.solve(&mut y);
+        // x -= J^T y
+        for (c, xc) in x.iter_mut().enumerate() {
+            *xc -= (0..k).map(|r| j[r * d + c] * y[r]).sum::<f64>();
+        }
+    }
+    Err(Error::Spec(format!(
+        "Newton projection from {x0:?} did not converge to |f| <= {tol:e}: the seed is too far from the manifold or the Jacobian is singular there"
+    )))
+}

@@ -1,0 +1,556 @@
+//! The equation language: presets against hand-written Rust, derivatives, WGSL validation,
+//! error kinds and positions, spec files, combinators.
+
+use isomesh::cpu::program::{Program, Scratch};
+use isomesh::expr::{
+    newton_project, parse_expr, parse_system, preset, preset_names, ClosureFunction,
+    EquationSystem, ErrorKind, Expr, ImplicitFunction, Op1, Op2, Scope, Spec,
+};
+use isomesh::gpu::wgsl::{eval_shader, Precision};
+use isomesh::Error;
+use proptest::prelude::*;
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+
+/// Hand-written f for each preset at its default parameters.
+fn hand_written(name: &str, x: &[f64]) -> Vec<f64> {
+    match name {
+        "circle" => vec![x[0] * x[0] + x[1] * x[1] - 1.0],
+        "sphere" => vec![x[0] * x[0] + x[1] * x[1] + x[2] * x[2] - 1.0],
+        "torus" => {
+            let q = (x[0] * x[0] + x[1] * x[1]).sqrt() - 1.0;
+            vec![q * q + x[2] * x[2] - 0.16]
+        }
+        "chair" => {
+            let (a, b, c) = (x[0], x[1], x[2]);
+            let s = a * a + b * b + c * c - 0.8;
+            vec![
+                s * s - 0.4 * ((c - 1.0).powi(2) - 2.0 * a * a) * ((c + 1.0).powi(2) - 2.0 * b * b),
+            ]
+        }
+        "flat-torus" | "cut-flat-torus" => {
+            vec![
+                x[0] * x[0] + x[1] * x[1] - 1.0,
+                x[2] * x[2] + x[3] * x[3] - 1.0,
+            ]
+        }
+        "3-torus" => vec![
+            x[0] * x[0] + x[1] * x[1] - 0.25,
+            x[2] * x[2] + x[3] * x[3] - 1.0,
+            x[4] * x[4] + x[5] * x[5] - 4.0,
+        ],
+        "complex-cosine" => vec![
+            x[0] - x[2].cos() * x[3].cosh(),
+            x[1] + x[2].sin() * x[3].sinh(),
+        ],
+        "bagel-klein" => {
+            let (s, t) = (x[3], x[4]);
+            let ring = 3.0 + (s / 2.0).cos() * t.sin() - (s / 2.0).sin() * (2.0 * t).sin();
+            vec![
+                s.cos() * ring - x[0],
+                s.sin() * ring - x[1],
+                (s / 2.0).sin() * t.sin() + (s / 2.0).cos() * (2.0 * t).sin() - x[2],
+            ]
+        }
+        other => panic!("no hand-written version of {other}"),
+    }
+}
+
+fn close(a: f64, b: f64, rel: f64) -> bool {
+    (a - b).abs() <= rel * a.abs().max(b.abs()).max(1.0)
+}
+
+#[test]
+fn presets_match_ast_and_hand_written_rust() {
+    let mut rng = ChaCha8Rng::seed_from_u64(11);
+    for name in preset_names() {
+        let p = preset(name, &[]).unwrap();
+        let sys = &p.system;
+        let (d, k) = (sys.ambient_dim(), sys.codim());
+        let seed = &p.seeds[0];
+        // The seed is on M.
+        let mut f = vec![0.0; k];
+        sys.eval_batch(seed, &mut f);
+        let norm = f.iter().map(|v| v * v).sum::<f64>().sqrt();
+        assert!(norm < 1e-9, "{name}: |f(seed)| = {norm}");
+        // 1,000 points around the seed, in one batch.
+        let n = 1000;
+        let points: Vec<f64> = (0..n * d)
+            .map(|i| seed[i % d] + rng.random_range(-0.7..0.7))
+            .collect();
+        let mut batch = vec![0.0; n * k];
+        sys.eval_batch(&points, &mut batch);
+        for (i, p) in points.chunks_exact(d).enumerate() {
+            let hand = hand_written(name, p);
+            for (o, e) in sys.equations().iter().enumerate() {
+                let tree = e.eval(p);
+                let b = batch[i * k + o];
+                assert_eq!(
+                    b.to_bits(),
+                    tree.to_bits(),
+                    "{name}: batch vs tree at {p:?}"
+                );
+                assert!(
+                    close(b, hand[o], 1e-12),
+                    "{name}: {b} vs hand-written {}",
+                    hand[o]
+                );
+            }
+        }
+    }
+}
+
+#[test]
+fn jacobians_agree_with_central_differences() {
+    let mut rng = ChaCha8Rng::seed_from_u64(12);
+    for name in preset_names() {
+        let p = preset(name, &[]).unwrap();
+        let sys = &p.system;
+        let (d, k) = (sys.ambient_dim(), sys.codim());
+        for _ in 0..50 {
+            let x: Vec<f64> = p.seeds[0]
+                .iter()
+                .map(|s| s + rng.random_range(-0.3..0.3))
+                .collect();
+            let mut j = vec![0.0; k * d];
+            sys.jacobian(&x, &mut j);
+            let (mut fp, mut fm) = (vec![0.0; k], vec![0.0; k]);
+            for c in 0..d {
+                let h = 1e-6;
+                let mut xp = x.clone();
+                xp[c] += h;
+                let mut xm = x.clone();
+                xm[c] -= h;
+                sys.eval_batch(&xp, &mut fp);
+                sys.eval_batch(&xm, &mut fm);
+                for r in 0..k {
+                    let fd = (fp[r] - fm[r]) / (2.0 * h);
+                    assert!(
+                        (fd - j[r * d + c]).abs() <= 1e-6 * fd.abs().max(1.0),
+                        "{name}: d f{r}/d x{c}: symbolic {} vs differences {fd}",
+                        j[r * d + c]
+                    );
+                }
+            }
+        }
+    }
+}
+
+#[test]
+fn every_preset_emits_valid_wgsl() {
+    for name in preset_names() {
+        let p = preset(name, &[]).unwrap();
+        for prec in [Precision::F32, Precision::F64] {
+            for prog in [p.system.values(), p.system.jacobian_program()] {
+                if let Err(e) = eval_shader(prog, prec) {
+                    panic!("{name} ({prec:?}): {e}");
+                }
+            }
+        }
+    }
+}
+
+/// A random expression tree over `d` variables.
+fn random_expr(rng: &mut ChaCha8Rng, d: usize, depth: usize) -> Expr {
+    if depth == 0 || rng.random_bool(0.2) {
+        return if rng.random_bool(0.6) {
+            Expr::Var(rng.random_range(0..d))
+        } else {
+            Expr::Num(rng.random_range(-5.0..5.0))
+        };
+    }
+    const OPS1: [Op1; 15] = [
+        Op1::Neg,
+        Op1::Sin,
+        Op1::Cos,
+        Op1::Tan,
+        Op1::Asin,
+        Op1::Acos,
+        Op1::Atan,
+        Op1::Sinh,
+        Op1::Cosh,
+        Op1::Tanh,
+        Op1::Exp,
+        Op1::Ln,
+        Op1::Sqrt,
+        Op1::Abs,
+        Op1::Sign,
+    ];
+    const OPS2: [Op2; 8] = [
+        Op2::Add,
+        Op2::Sub,
+        Op2::Mul,
+        Op2::Div,
+        Op2::Pow,
+        Op2::Atan2,
+        Op2::Min,
+        Op2::Max,
+    ];
+    match rng.random_range(0..3) {
+        0 => Expr::un(
+            OPS1[rng.random_range(0..OPS1.len())],
+            random_expr(rng, d, depth - 1),
+        ),
+        1 => Expr::powi(random_expr(rng, d, depth - 1), rng.random_range(-5..7)),
+        _ => Expr::bin(
+            OPS2[rng.random_range(0..OPS2.len())],
+            random_expr(rng, d, depth - 1),
+            random_expr(rng, d, depth - 1),
+        ),
+    }
+}
+
+#[test]
+fn random_expressions_emit_valid_wgsl_and_round_trip() {
+    let mut rng = ChaCha8Rng::seed_from_u64(13);
+    let mut scratch = Scratch::default();
+    for i in 0..1000 {
+        let d = rng.random_range(1..=8);
+        let k = rng.random_range(1..=3);
+        let exprs: Vec<Expr> = (0..k).map(|_| random_expr(&mut rng, d, 6)).collect();
+        // Constant folding can make a sub-expression non-finite (e.g. ln(-2)); such trees are
+        // rejected by the parser, so skip them here.
+        if exprs
+            .iter()
+            .any(|e| e.to_string().contains("NaN") || e.to_string().contains("inf"))
+        {
+            continue;
+        }
+        let prog = Program::compile(&exprs, d);
+        let beyond_f32 = prog.nodes().iter().any(
+            |n| matches!(n, isomesh::cpu::program::Node::Const(c) if !(*c as f32).is_finite()),
+        );
+        for prec in [Precision::F32, Precision::F64] {
+            match eval_shader(&prog, prec) {
+                Err(Error::Wgsl(m)) if prec == Precision::F32 && beyond_f32 => {
+                    assert!(m.contains("does not fit in f32"), "{m}")
+                }
+                Err(e) => panic!("expression {i} ({prec:?}) {:?}: {e}", exprs),
+                Ok(_) => assert!(prec == Precision::F64 || !beyond_f32),
+            }
+        }
+        // Text form parses back to the same tree, and batch evaluation equals the tree.
+        let scope = Scope::new(d);
+        let x: Vec<f64> = (0..d).map(|_| rng.random_range(-2.0..2.0)).collect();
+        let mut out = vec![0.0; k];
+        prog.eval_batch(&x, &mut out, &mut scratch);
+        for (o, e) in exprs.iter().enumerate() {
+            let back = parse_expr(&e.to_string(), &scope).unwrap();
+            let (a, b) = (back.eval(&x), e.eval(&x));
+            assert!(
+                a.to_bits() == b.to_bits() || (a.is_nan() && b.is_nan()),
+                "round trip of {e}: {a} vs {b}"
+            );
+            let c = out[o];
+            assert!(
+                c.to_bits() == b.to_bits() || (c.is_nan() && b.is_nan()),
+                "batch {c} vs tree {b} for {e}"
+            );
+        }
+    }
+}
+
+#[test]
+fn malformed_inputs_name_kind_and_position() {
+    use ErrorKind::*;
+    let s3 = Scope::new(3);
+    let mut s5 = Scope::new(5);
+    s5.add_parameter("r", 1.5).unwrap();
+    // (text, scope, kind, line, column)
+    let cases: Vec<(&str, &Scope, ErrorKind, usize, usize)> = vec![
+        ("", &s3, UnexpectedEnd, 1, 1),
+        ("   ", &s3, UnexpectedEnd, 1, 1),
+        ("x +", &s3, UnexpectedEnd, 1, 4),
+        ("x + * y", &s3, UnexpectedToken, 1, 5),
+        ("(x + y", &s3, UnexpectedEnd, 1, 7),
+        ("x + y)", &s3, UnexpectedToken, 1, 6),
+        ("x y", &s3, UnexpectedToken, 1, 3),
+        ("2x", &s3, BadNumber, 1, 1),
+        ("1e", &s3, BadNumber, 1, 1),
+        ("1e+", &s3, BadNumber, 1, 1),
+        ("1.2.3", &s3, BadNumber, 1, 1),
+        ("x $ y", &s3, UnexpectedChar, 1, 3),
+        ("x # 2", &s3, UnexpectedChar, 1, 3),
+        ("x = 2", &s3, UnexpectedChar, 1, 3),
+        ("x & y", &s3, UnexpectedChar, 1, 3),
+        ("q + 1", &s3, UnknownName, 1, 1),
+        ("x + radius", &s3, UnknownName, 1, 5),
+        ("w + 1", &s3, UnknownName, 1, 1),
+        ("x4 - 1", &s3, VariableIndex, 1, 1),
+        ("x0 + y", &s3, VariableIndex, 1, 1),
+        ("x1 + x6", &s5, VariableIndex, 1, 6),
+        ("x + 1", &s5, UnknownName, 1, 1),
+        ("foo(x)", &s3, UnknownFunction, 1, 1),
+        ("x1 + r(2)", &s5, UnknownFunction, 1, 6),
+        ("x(2)", &s3, UnknownFunction, 1, 1),
+        ("sin(x, y)", &s3, WrongArity, 1, 1),
+        ("sin()", &s3, WrongArity, 1, 1),
+        ("atan2(x)", &s3, WrongArity, 1, 1),
+        ("1 + max(x, y, z)", &s3, WrongArity, 1, 5),
+        ("pow(x)", &s3, WrongArity, 1, 1),
+        ("sin x", &s3, UnexpectedToken, 1, 1),
+        ("sin", &s3, UnexpectedToken, 1, 1),
+        ("sin(x", &s3, UnexpectedEnd, 1, 6),
+        ("min(x,, y)", &s3, UnexpectedToken, 1, 7),
+        ("1 / 0", &s3, NonFinite, 1, 1),
+        ("sqrt(-1) + x", &s3, NonFinite, 1, 1),
+        ("ln(0) * y", &s3, NonFinite, 1, 1),
+        ("x^^2", &s3, UnexpectedToken, 1, 3),
+        ("*x", &s3, UnexpectedToken, 1, 1),
+        (")", &s3, UnexpectedToken, 1, 1),
+        ("x,y", &s3, UnexpectedToken, 1, 2),
+        ("   x +\t", &s3, UnexpectedEnd, 1, 8),
+    ];
+    assert!(cases.len() >= 40);
+    for (text, scope, kind, line, column) in cases {
+        let e = parse_expr(text, scope).unwrap_err();
+        assert_eq!(
+            (e.kind, e.line, e.column),
+            (kind, line, column),
+            "input {text:?} gave {e}"
+        );
+        assert!(!e.message.is_empty());
+    }
+    // Systems: line numbers, ';' columns, equation counts.
+    let e = parse_system("x^2 + y^2 - 1\nz + * 2", &s3).unwrap_err();
+    assert_eq!(
+        (e.kind, e.line, e.column),
+        (ErrorKind::UnexpectedToken, 2, 5)
+    );
+    let e = parse_system("x - 1; y + q", &s3).unwrap_err();
+    assert_eq!((e.kind, e.line, e.column), (ErrorKind::UnknownName, 1, 12));
+    let e = parse_system("x; y; z", &s3).unwrap_err();
+    assert_eq!(e.kind, ErrorKind::Dimensions);
+    let e = parse_system("\n\n", &s3).unwrap_err();
+    assert_eq!(e.kind, ErrorKind::Dimensions);
+    assert_eq!(parse_system("x^2 + y^2 - 1; z", &s3).unwrap().len(), 2);
+    // Names.
+    let mut s = Scope::new(3);
+    assert_eq!(s.add_parameter("x", 1.0).unwrap_err().kind, DuplicateName);
+    assert_eq!(s.add_parameter("sin", 1.0).unwrap_err().kind, DuplicateName);
+    assert_eq!(s.add_parameter("r", f64::NAN).unwrap_err().kind, NonFinite);
+    let names = vec!["a".to_string(), "a".to_string()];
+    assert_eq!(Scope::with_names(&names).unwrap_err().kind, DuplicateName);
+}
+
+#[test]
+fn operators_bind_as_in_mathematics() {
+    let s = Scope::new(2);
+    let ev = |t: &str| parse_expr(t, &s).unwrap().eval(&[2.0, 3.0]);
+    assert_eq!(ev("-x^2"), -4.0);
+    assert_eq!(ev("2^3^2"), 512.0);
+    assert_eq!(ev("x - y - 1"), -2.0);
+    assert_eq!(ev("x / y * 3"), 2.0);
+    assert_eq!(ev("x ** 2 + 1"), 5.0);
+    assert_eq!(ev("2e-3 * 1000 + .5"), 2.5);
+    assert_eq!(ev("x^-1"), 0.5);
+    assert_eq!(ev("log(e) + ln(1)"), 1.0);
+    assert!((ev("atan2(y, x)") - 3f64.atan2(2.0)).abs() < 1e-15);
+    assert_eq!(ev("min(x, y) + max(x, y) + abs(-x) + sign(-y)"), 6.0);
+    assert!((ev("pi") - std::f64::consts::PI).abs() < 1e-15);
+    assert_eq!(ev("pow(y, 2)"), 9.0);
+    assert_eq!(ev("x^0.5"), 2f64.sqrt());
+    // Constant folding: parameters and constant sub-expressions become numbers.
+    let mut p = Scope::new(2);
+    p.add_parameter("r", 1.5).unwrap();
+    assert_eq!(
+        parse_expr("x^2 - r^2 * 2", &p).unwrap(),
+        Expr::sub(Expr::powi(Expr::Var(0), 2), Expr::Num(4.5))
+    );
+}
+
+#[test]
+fn spec_files_parse_and_reject_unknown_keys() {
+    let text = r#"
+ambient_dim = 4
+variables = ["x", "y", "z", "w"]
+parameters = { r = 1.0 }
+equations = ["x^2 + y^2 - r^2", "z^2 + w^2 - 1"]
+boundary = ["4 - (x-1)^2 - y^2 - (z-1)^2 - w^2"]
+seeds = [[1.1, 0.0, 0.9, 0.1]]
+box = [[-2.0, 2.0], [-2.0, 2.0], [-2.0, 2.0], [-2.0, 2.0]]
+[triangulation]
+kind = "coxeter"
+edge = 0.05
+offset_seed = 1
+"#;
+    let p = Spec::from_toml(text).unwrap().resolve("example").unwrap();
+    assert_eq!(p.dim(), 4);
+    assert_eq!(p.system.codim(), 2);
+    assert_eq!(p.system.boundary().len(), 1);
+    let mut f = [0.0; 2];
+    p.system.eval_batch(&p.seeds[0], &mut f);
+    assert!(f.iter().all(|v| v.abs() < 1e-12), "seed projected onto M");
+    assert!(p.system.inside_boundary(&p.seeds[0]));
+    assert!(!p.system.inside_boundary(&[-1.0, 0.0, -1.0, 0.0]));
+    let t = p.triangulation.build(4).unwrap();
+    assert!((t.edge() - 0.05).abs() < 1e-15);
+
+    let bad = |t: &str| Spec::from_toml(t).and_then(|s| s.resolve("bad"));
+    let base = "ambient_dim = 3\nequations = [\"x^2 + y^2 + z^2 - 1\"]\n";
+    assert!(bad(base).is_ok());
+    assert!(
+        matches!(bad(&format!("{base}colour = 3\n")), Err(Error::Spec(m)) if m.contains("colour"))
+    );
+    assert!(matches!(
+        bad(&format!("{base}[triangulation]\nedg = 0.1\n")),
+        Err(Error::Spec(_))
+    ));
+    assert!(matches!(
+        bad(&format!("{base}[triangulation]\nkind = \"cubic\"\n")),
+        Err(Error::Triangulation(_))
+    ));
+    assert!(matches!(
+        bad(&format!("{base}[triangulation]\nedge = -1.0\n")),
+        Err(Error::Triangulation(_))
+    ));
+    assert!(matches!(
+        bad(&format!("{base}seeds = [[1.0, 0.0]]\n")),
+        Err(Error::DimensionMismatch(_))
+    ));
+    assert!(matches!(
+        bad(&format!("{base}seeds = [[50.0, 0.0, 0.0]]\n")),
+        Ok(_)
+    ));
+    assert!(matches!(
+        bad(&format!(
+            "{base}box = [[1.0, 0.0], [0.0, 1.0], [0.0, 1.0]]\n"
+        )),
+        Err(Error::Spec(_))
+    ));
+    assert!(matches!(
+        bad(&format!("{base}box = [[0.0, 1.0]]\n")),
+        Err(Error::DimensionMismatch(_))
+    ));
+    assert!(matches!(
+        bad(&format!("{base}variables = [\"a\", \"b\"]\n")),
+        Err(Error::DimensionMismatch(_))
+    ));
+    assert!(matches!(
+        bad("ambient_dim = 3\nequations = [\"x^2 + y^2 + z^2 - 1\", \"x^2 + q\"]\n"),
+        Err(Error::Parse(e)) if e.kind == ErrorKind::UnknownName && e.line == 2 && e.column == 7
+    ));
+    assert!(matches!(
+        bad("ambient_dim = 2\nequations = [\"x\", \"y\"]\n"),
+        Err(Error::Parse(e)) if e.kind == ErrorKind::Dimensions
+    ));
+    assert!(matches!(
+        bad("ambient_dim = 0\nequations = []\n"),
+        Err(Error::Dimension(0))
+    ));
+    assert!(matches!(
+        bad("ambient_dim = 99\nequations = [\"x1\"]\n"),
+        Err(Error::Dimension(99))
+    ));
+    // A seed from which Newton cannot reach M: x^2 + 1 = 0 has no real zero.
+    assert!(matches!(
+        bad("ambient_dim = 2\nequations = [\"x^2 + 1 + 0*y\"]\nseeds = [[0.5, 0.0]]\n"),
+        Err(Error::Spec(m)) if m.contains("Newton")
+    ));
+}
+
+#[test]
+fn presets_take_parameters_and_reject_unknown_ones() {
+    let p = preset(
+        "sphere",
+        &[("m".into(), 3.0), ("d".into(), 6.0), ("r".into(), 2.0)],
+    )
+    .unwrap();
+    assert_eq!(p.dim(), 6);
+    assert_eq!(p.system.codim(), 3);
+    assert!((p.seeds[0][0] - 2.0).abs() < 1e-12);
+    assert!(matches!(
+        preset("sphere", &[("q".into(), 1.0)]),
+        Err(Error::Spec(_))
+    ));
+    assert!(matches!(
+        preset("sphere", &[("m".into(), 3.0)]),
+        Err(Error::Spec(_))
+    ));
+    assert!(matches!(
+        preset("sphere", &[("d".into(), 2.5)]),
+        Err(Error::Spec(_))
+    ));
+    assert!(matches!(preset("nope", &[]), Err(Error::Spec(_))));
+    let ft = preset("flat-torus", &[("d".into(), 10.0)]).unwrap();
+    assert_eq!((ft.dim(), ft.system.codim()), (10, 8));
+    let chair = preset("chair", &[("d".into(), 5.0)]).unwrap();
+    assert_eq!((chair.dim(), chair.system.codim()), (5, 3));
+}
+
+#[test]
+fn combinators_move_manifolds_and_seeds_together() {
+    let circle = EquationSystem::parse_simple(2, &["x^2 + y^2 - 1"]).unwrap();
+    let torus = circle.product(&circle).unwrap();
+    assert_eq!((torus.ambient_dim(), torus.codim()), (4, 2));
+    let emb = torus.embed(6).unwrap();
+    assert_eq!((emb.ambient_dim(), emb.codim()), (6, 4));
+    let (rot, r) = emb.rotate(7).unwrap();
+    let t = [0.5, -1.0, 2.0, 0.0, 0.25, 3.0];
+    let moved = rot.translate(&t).unwrap();
+    // The point (1, 0, 0, 1, 0, 0) of the embedded torus, rotated then translated.
+    let p = [1.0, 0.0, 0.0, 1.0, 0.0, 0.0];
+    let mut q = [0.0; 6];
+    for i in 0..6 {
+        q[i] = (0..6).map(|j| r[i * 6 + j] * p[j]).sum::<f64>() + t[i];
+    }
+    let mut f = [0.0; 4];
+    moved.eval_batch(&q, &mut f);
+    assert!(f.iter().all(|v| v.abs() < 1e-12), "{f:?}");
+    // A point off the torus stays off after the same moves.
+    let mut off = q;
+    off[0] += 0.1;
+    moved.eval_batch(&off, &mut f);
+    assert!(f.iter().any(|v| v.abs() > 1e-3));
+    assert!(matches!(circle.embed(1), Err(Error::DimensionMismatch(_))));
+    assert!(matches!(
+        circle.translate(&[1.0]),
+        Err(Error::DimensionMismatch(_))
+    ));
+}
+
+#[test]
+fn closures_work_as_functions_and_newton_projects_onto_them() {
+    let f = ClosureFunction::new(3, 1, |x, out| {
+        out[0] = x[0] * x[0] + x[1] * x[1] + x[2] * x[2] - 4.0
+    })
+    .unwrap();
+    let p = newton_project(&f, &[1.0, 1.0, 1.0], 1e-12).unwrap();
+    let r = p.iter().map(|v| v * v).sum::<f64>().sqrt();
+    assert!((r - 2.0).abs() < 1e-10);
+    // Direction preserved: the nearest point on the sphere.
+    assert!((p[0] - p[1]).abs() < 1e-12 && (p[1] - p[2]).abs() < 1e-12);
+    assert!(f.system().is_none());
+    assert!(matches!(
+        ClosureFunction::new(2, 2, |_, _| {}),
+        Err(Error::Parse(_))
+    ));
+    assert!(matches!(
+        newton_project(&f, &[1.0, 1.0], 1e-12),
+        Err(Error::DimensionMismatch(_))
+    ));
+    assert!(matches!(
+        newton_project(&f, &[1.0, f64::NAN, 1.0], 1e-12),
+        Err(Error::NonFinite { .. })
+    ));
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 2000, .. ProptestConfig::default() })]
+
+    /// The parser never panics, whatever the input.
+    #[test]
+    fn parser_never_panics(text in "[-+*/^(),.0-9a-z_ \\t$;]{0,40}") {
+        let _ = parse_expr(&text, &Scope::new(4));
+        let _ = parse_system(&text, &Scope::new(3));
+    }
+
+    /// Any printable input: an Ok or a positioned error inside the text.
+    #[test]
+    fn errors_point_inside_the_input(text in "\\PC{0,30}") {
+        if let Err(e) = parse_expr(&text, &Scope::new(3)) {
+            prop_assert_eq!(e.line, 1);
+            prop_assert!(e.column >= 1 && e.column <= text.chars().count() + 1);
+        }
+    }
+}
