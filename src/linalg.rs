@@ -1,3 +1,5 @@
+// Index loops read as the textbook algorithms they are.
+#![allow(clippy::needless_range_loop)]
 //! Small dense linear algebra: LU with partial pivoting, for the custom and rotated
 //! triangulation maps and for Newton steps. Row-major storage throughout.
 

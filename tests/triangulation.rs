@@ -361,11 +361,7 @@ fn points_on_lower_dimensional_faces_are_located_on_them() {
         }
         // Exact location (no tolerance) on FK with dyadic barycentres.
         for _ in 0..10 {
-            let l = [0usize, 1, 3, 7]
-                .into_iter()
-                .filter(|&l| l <= d)
-                .last()
-                .unwrap();
+            let l = [0usize, 1, 3, 7].into_iter().rfind(|&l| l <= d).unwrap();
             let s = random_simplex(&mut rng, d, l);
             let p = fk.simplex_coords(&s);
             let x: Vec<f64> = (0..d)

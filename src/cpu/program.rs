@@ -9,7 +9,7 @@ use std::collections::HashMap;
 use crate::expr::ast::{powi, Expr, Op1, Op2};
 
 /// Points per chunk: registers are arrays of this many lanes.
-pub const LANES: usize = 32;
+pub const LANES: usize = 64;
 
 /// One node of the DAG.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -143,8 +143,12 @@ impl Program {
                 Node::Bin(_, a, c) => [Some(a), Some(c)],
                 _ => continue,
             };
-            // Free arguments whose last use is here (their register may be reused as output:
-            // every instruction reads all lanes of its inputs lane by lane before writing).
+            // The destination is chosen before this node's arguments are freed, so it never
+            // aliases an input (run() relies on this).
+            reg[i] = free.pop().unwrap_or_else(|| {
+                n_regs += 1;
+                n_regs - 1
+            });
             for a in args.into_iter().flatten() {
                 let a = a as usize;
                 if last_use[a] == i && !matches!(nodes[a], Node::Var(_) | Node::Const(_)) {
@@ -152,10 +156,6 @@ impl Program {
                     free.push(reg[a]);
                 }
             }
-            reg[i] = free.pop().unwrap_or_else(|| {
-                n_regs += 1;
-                n_regs - 1
-            });
         }
         Program {
             dim,
@@ -195,7 +195,7 @@ impl Program {
     /// Evaluates at n points: `points` is n rows of `dim`, `out` n rows of `outputs()`.
     pub fn eval_batch(&self, points: &[f64], out: &mut [f64], scratch: &mut Scratch) {
         let (d, k) = (self.dim, self.outputs.len());
-        let n = if d == 0 { 0 } else { points.len() / d };
+        let n = points.len().checked_div(d).unwrap_or(0);
         assert_eq!(
             out.len(),
             n * k,
@@ -220,51 +220,84 @@ impl Program {
                 }
             }
             self.run(regs);
-            for j in 0..lanes {
-                for (o, &node) in self.outputs.iter().enumerate() {
-                    out[(start + j) * k + o] = regs[self.reg[node as usize] as usize][j];
+            let rows = &mut out[start * k..(start + lanes) * k];
+            for (o, &node) in self.outputs.iter().enumerate() {
+                let r = &regs[self.reg[node as usize] as usize];
+                for (j, row) in rows.chunks_exact_mut(k).enumerate() {
+                    row[o] = r[j];
                 }
             }
             start += lanes;
         }
     }
 
+    #[inline]
+    fn is_const(&self, node: u32) -> bool {
+        matches!(self.nodes[node as usize], Node::Const(_))
+    }
+
+    #[inline]
+    fn const_value(&self, node: u32) -> f64 {
+        match self.nodes[node as usize] {
+            Node::Const(c) => c,
+            _ => f64::NAN,
+        }
+    }
+
     /// Runs every instruction over all lanes.
     fn run(&self, regs: &mut [[f64; LANES]]) {
+        let base = regs.as_mut_ptr();
+        let n = regs.len();
         for (i, node) in self.nodes.iter().enumerate() {
             let dst = self.reg[i] as usize;
+            let arg = |a: u32| self.reg[a as usize] as usize;
+            let (ra, rb) = match *node {
+                Node::Var(_) | Node::Const(_) => continue,
+                Node::Un(_, a) | Node::PowI(a, _) => (arg(a), arg(a)),
+                Node::Bin(_, a, b) => (arg(a), arg(b)),
+            };
+            assert!(dst < n && ra < n && rb < n && dst != ra && dst != rb);
+            // SAFETY: all three indices are in bounds, and the register allocator never gives
+            // an instruction a destination equal to one of its inputs, so `out` does not
+            // alias `a` or `b` (checked just above).
+            let (a, b, out) = unsafe { (&*base.add(ra), &*base.add(rb), &mut *base.add(dst)) };
             match *node {
-                Node::Var(_) | Node::Const(_) => {}
-                Node::Un(op, a) => {
-                    let a = regs[self.reg[a as usize] as usize];
-                    let out = &mut regs[dst];
+                Node::Un(op, _) => match op {
+                    Op1::Neg => lanes1(out, a, |x| -x),
+                    Op1::Abs => lanes1(out, a, f64::abs),
+                    Op1::Sqrt => lanes1(out, a, f64::sqrt),
+                    _ => lanes1(out, a, |x| op.apply(x)),
+                },
+                Node::Bin(op, _, nb) if self.is_const(nb) => {
+                    let c = self.const_value(nb);
                     match op {
-                        Op1::Neg => lanes1(out, &a, |x| -x),
-                        Op1::Abs => lanes1(out, &a, f64::abs),
-                        Op1::Sqrt => lanes1(out, &a, f64::sqrt),
-                        _ => lanes1(out, &a, |x| op.apply(x)),
+                        Op2::Add => lanes1(out, a, |x| x + c),
+                        Op2::Sub => lanes1(out, a, |x| x - c),
+                        Op2::Mul => lanes1(out, a, |x| x * c),
+                        Op2::Div => lanes1(out, a, |x| x / c),
+                        _ => lanes1(out, a, |x| op.apply(x, c)),
                     }
                 }
-                Node::Bin(op, a, b) => {
-                    let a = regs[self.reg[a as usize] as usize];
-                    let b = regs[self.reg[b as usize] as usize];
-                    let out = &mut regs[dst];
+                Node::Bin(op, na, _) if self.is_const(na) => {
+                    let c = self.const_value(na);
                     match op {
-                        Op2::Add => lanes2(out, &a, &b, |x, y| x + y),
-                        Op2::Sub => lanes2(out, &a, &b, |x, y| x - y),
-                        Op2::Mul => lanes2(out, &a, &b, |x, y| x * y),
-                        Op2::Div => lanes2(out, &a, &b, |x, y| x / y),
-                        _ => lanes2(out, &a, &b, |x, y| op.apply(x, y)),
+                        Op2::Add => lanes1(out, b, |y| c + y),
+                        Op2::Sub => lanes1(out, b, |y| c - y),
+                        Op2::Mul => lanes1(out, b, |y| c * y),
+                        Op2::Div => lanes1(out, b, |y| c / y),
+                        _ => lanes1(out, b, |y| op.apply(c, y)),
                     }
                 }
-                Node::PowI(a, n) => {
-                    let a = regs[self.reg[a as usize] as usize];
-                    let out = &mut regs[dst];
-                    match n {
-                        2 => lanes1(out, &a, |x| x * x),
-                        _ => lanes1(out, &a, |x| powi(x, n)),
-                    }
-                }
+                Node::Bin(op, _, _) => match op {
+                    Op2::Add => lanes2(out, a, b, |x, y| x + y),
+                    Op2::Sub => lanes2(out, a, b, |x, y| x - y),
+                    Op2::Mul => lanes2(out, a, b, |x, y| x * y),
+                    Op2::Div => lanes2(out, a, b, |x, y| x / y),
+                    _ => lanes2(out, a, b, |x, y| op.apply(x, y)),
+                },
+                Node::PowI(_, 2) => lanes1(out, a, |x| x * x),
+                Node::PowI(_, n) => lanes1(out, a, |x| powi(x, n)),
+                _ => {}
             }
         }
     }

@@ -218,7 +218,7 @@ impl Expr {
             Op2::Div if b.is(1.0) => a,
             Op2::Pow => match b.as_num() {
                 Some(n) if n.fract() == 0.0 && n.abs() <= 64.0 => Expr::powi(a, n as i32),
-                Some(h) if h == 0.5 => Expr::un(Op1::Sqrt, a),
+                Some(0.5) => Expr::un(Op1::Sqrt, a),
                 _ => Expr::Bin(op, Box::new(a), Box::new(b)),
             },
             _ => Expr::Bin(op, Box::new(a), Box::new(b)),
@@ -243,22 +243,27 @@ impl Expr {
     }
 
     /// Sum.
+    #[allow(clippy::should_implement_trait)] // a constructor that simplifies, not an operator
     pub fn add(a: Expr, b: Expr) -> Expr {
         Expr::bin(Op2::Add, a, b)
     }
     /// Difference.
+    #[allow(clippy::should_implement_trait)] // a constructor that simplifies, not an operator
     pub fn sub(a: Expr, b: Expr) -> Expr {
         Expr::bin(Op2::Sub, a, b)
     }
     /// Product.
+    #[allow(clippy::should_implement_trait)] // a constructor that simplifies, not an operator
     pub fn mul(a: Expr, b: Expr) -> Expr {
         Expr::bin(Op2::Mul, a, b)
     }
     /// Quotient.
+    #[allow(clippy::should_implement_trait)] // a constructor that simplifies, not an operator
     pub fn div(a: Expr, b: Expr) -> Expr {
         Expr::bin(Op2::Div, a, b)
     }
     /// Negation.
+    #[allow(clippy::should_implement_trait)] // a constructor that simplifies, not an operator
     pub fn neg(a: Expr) -> Expr {
         Expr::un(Op1::Neg, a)
     }

@@ -384,11 +384,7 @@ impl Parser<'_> {
             ));
         }
         let mut lhs = self.prefix(depth)?;
-        loop {
-            let op = match self.peek().tok {
-                Tok::Op(c @ ('+' | '-' | '*' | '/' | '^')) => c,
-                _ => break,
-            };
+        while let Tok::Op(op @ ('+' | '-' | '*' | '/' | '^')) = self.peek().tok {
             let (lbp, rbp) = match op {
                 '+' | '-' => (1, 2),
                 '*' | '/' => (3, 4),

@@ -99,7 +99,7 @@ fn unit_longest_edge(kind: TriangulationKind, d: usize) -> f64 {
     match kind {
         // Edge sum_{j in S} e_j has squared length |S|(d+1-|S|)/(d+1): largest at |S| = (d+1)/2.
         TriangulationKind::Coxeter => {
-            let a = (d + 1) / 2;
+            let a = d.div_ceil(2);
             ((a * (d + 1 - a)) as f64 / (d + 1) as f64).sqrt()
         }
         // The main diagonal of the unit cube.

@@ -497,6 +497,11 @@ impl<F: FnMut(&Simplex)> CofaceGen<'_, F> {
             (self.f)(&self.emit);
             return;
         }
+        if remaining == n - part {
+            // Every remaining part stays whole: copy them and emit, without recursing.
+            self.work.parts[out_len..out_len + remaining].copy_from_slice(&self.src.parts[part..n]);
+            return self.refine(n, out_len + remaining, 0);
+        }
         let m = self.src.parts[part];
         let size = m.count_ones() as usize;
         let later_parts = n - part - 1;
