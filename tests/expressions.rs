@@ -408,11 +408,7 @@ offset_seed = 1
         bad(&format!("{base}seeds = [[1.0, 0.0]]\n")),
         Err(Error::DimensionMismatch(_))
     ));
-    assert!(bad(&format!(
-        "{base}seeds = [[50.0, 0.0, 0.0]]
-"
-    ))
-    .is_ok());
+    assert!(bad(&format!("{base}seeds = [[50.0, 0.0, 0.0]]\n")).is_ok());
     assert!(matches!(
         bad(&format!(
             "{base}box = [[1.0, 0.0], [0.0, 1.0], [0.0, 1.0]]\n"
