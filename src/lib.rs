@@ -6,6 +6,24 @@
 //!   location, compact keys.
 //! - [`expr`]: the equation language: parser, derivatives, batch evaluation, WGSL emission,
 //!   spec files and presets.
+//!
+//! ```
+//! use isomesh::expr::{preset, ImplicitFunction};
+//! use isomesh::triangulation::Triangulation;
+//!
+//! // The built-in torus, its seed already projected onto f^-1(0).
+//! let torus = preset("torus", &[]).unwrap();
+//! let seed = &torus.seeds[0];
+//! let mut f = [0.0];
+//! torus.system.eval_batch(seed, &mut f);
+//! assert!(f[0].abs() < 1e-12);
+//!
+//! // The Coxeter simplex holding the seed, and its facets.
+//! let t = Triangulation::coxeter(3).edge(0.05).build().unwrap();
+//! let s = t.locate(seed).unwrap();
+//! assert_eq!(s.dim(), 3);
+//! assert_eq!(s.facets().len(), 4);
+//! ```
 
 pub mod cpu;
 pub mod error;
