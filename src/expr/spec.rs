@@ -7,7 +7,7 @@ use serde::Deserialize;
 use super::parser::Scope;
 use super::system::{newton_project, EquationSystem};
 use crate::error::{check_finite, Error, Result};
-use crate::triangulation::{Offset, Triangulation, TriangulationKind};
+use crate::triangulation::{check_dim, Offset, Triangulation, TriangulationKind};
 
 /// A spec file as written.
 #[derive(Clone, Debug, Default, Deserialize, PartialEq)]
@@ -157,7 +157,7 @@ impl Spec {
     /// Validates everything and compiles the equations; seeds are Newton-projected.
     pub fn resolve(&self, name: &str) -> Result<Problem> {
         let d = self.ambient_dim;
-        crate::triangulation::Simplex::vertex(&vec![0; d])?;
+        check_dim(d)?;
         let mut scope = match &self.variables {
             Some(names) => {
                 if names.len() != d {
@@ -175,14 +175,7 @@ impl Spec {
         }
         let eqs: Vec<&str> = self.equations.iter().map(String::as_str).collect();
         let bnd: Vec<&str> = self.boundary.iter().map(String::as_str).collect();
-        let mut system = EquationSystem::parse(&scope, &eqs, &bnd)?;
-        if let Some(names) = &self.variables {
-            system = EquationSystem::from_exprs(
-                names.clone(),
-                system.equations().to_vec(),
-                system.boundary().to_vec(),
-            )?;
-        }
+        let system = EquationSystem::parse(&scope, &eqs, &bnd)?;
         if let Some(b) = &self.bbox {
             check_box(b, d)?;
         }

@@ -8,7 +8,7 @@ use super::parser::{check_counts, parse_expr_at, ParseError, Scope};
 use crate::cpu::program::{Program, Scratch};
 use crate::error::{check_finite, Error, Result};
 use crate::linalg::Lu;
-use crate::triangulation::random_rotation;
+use crate::triangulation::{check_dim, random_rotation};
 
 /// What the tracer needs of f: R^d -> R^k.
 pub trait ImplicitFunction: Send + Sync {
@@ -82,7 +82,7 @@ impl EquationSystem {
         boundary: Vec<Expr>,
     ) -> Result<Self> {
         let d = names.len();
-        crate::triangulation::Simplex::vertex(&vec![0; d.max(1)])?;
+        check_dim(d)?;
         check_counts(equations.len(), d, 1)?;
         if let Some(e) = equations.iter().chain(&boundary).find(|e| e.arity() > d) {
             return Err(Error::DimensionMismatch(format!(
@@ -215,12 +215,11 @@ fn indexed_names(d: usize) -> Vec<String> {
     (1..=d).map(|i| format!("x{i}")).collect()
 }
 
+/// x1..xd, with the scope's names (x y z w, or declared ones) where it has them.
 fn default_names(scope: &Scope) -> Vec<String> {
     let mut names = indexed_names(scope.dim);
     for (n, i) in &scope.variables {
-        if *i < names.len() && names[*i].starts_with('x') && n.len() <= names[*i].len() {
-            names[*i] = n.clone();
-        }
+        names[*i] = n.clone();
     }
     names
 }
@@ -264,7 +263,7 @@ impl ClosureFunction {
         k: usize,
         f: impl Fn(&[f64], &mut [f64]) + Send + Sync + 'static,
     ) -> Result<Self> {
-        crate::triangulation::Simplex::vertex(&vec![0; d.max(1)])?;
+        check_dim(d)?;
         check_counts(k, d, 1)?;
         Ok(ClosureFunction {
             d,

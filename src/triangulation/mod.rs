@@ -10,4 +10,5 @@ pub use geometry::{
     random_rotation, Offset, Triangulation, TriangulationBuilder, TriangulationKind,
 };
 pub use key::{KeyCodec, KeySet};
+pub(crate) use simplex::check_dim;
 pub use simplex::{Simplex, MAX_DIM};
