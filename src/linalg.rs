@@ -82,17 +82,6 @@ pub fn mat_vec(a: &[f64], x: &[f64], out: &mut [f64]) {
     }
 }
 
-/// `out = a^T * x` for a row-major n x n matrix.
-pub fn mat_t_vec(a: &[f64], x: &[f64], out: &mut [f64]) {
-    let n = x.len();
-    out[..n].fill(0.0);
-    for (r, &xr) in x.iter().enumerate() {
-        for (c, o) in out.iter_mut().enumerate().take(n) {
-            *o += a[r * n + c] * xr;
-        }
-    }
-}
-
 /// Row-major product of two n x n matrices.
 pub fn mat_mul(a: &[f64], b: &[f64], n: usize) -> Vec<f64> {
     let mut out = vec![0.0; n * n];
