@@ -43,6 +43,9 @@ pub enum Error {
     /// WGSL that naga rejects (a bug in the emitter: the message is naga's).
     #[error("generated WGSL does not validate:\n{0}")]
     Wgsl(String),
+    /// A trace or scan that cannot run as asked (no seed, seed off M, box too large...).
+    #[error("trace: {0}")]
+    Trace(String),
     /// Input/output failure, with the path involved.
     #[error("{0}")]
     Io(String),

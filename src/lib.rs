@@ -6,6 +6,7 @@
 //!   location, compact keys.
 //! - [`expr`]: the equation language: parser, derivatives, batch evaluation, WGSL emission,
 //!   spec files and presets.
+//! - [`trace`]: manifold tracing and the exhaustive scan, behind the [`trace::Oracle`] trait.
 //!
 //! ```
 //! use isomesh::expr::{preset, ImplicitFunction};
@@ -27,9 +28,12 @@
 
 pub mod cpu;
 pub mod error;
+pub mod export;
 pub mod expr;
 pub mod gpu;
 pub mod linalg;
+pub mod memory;
+pub mod trace;
 pub mod triangulation;
 
 pub use error::{Error, Result};

@@ -48,6 +48,11 @@ impl Lu {
         Some(Lu { n, lu, perm })
     }
 
+    /// |det A|.
+    pub fn abs_det(&self) -> f64 {
+        (0..self.n).map(|i| self.lu[i * self.n + i].abs()).product()
+    }
+
     /// Solves `A x = b`, overwriting `b` with `x`.
     pub fn solve(&self, b: &mut [f64]) {
         let n = self.n;

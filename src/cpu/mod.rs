@@ -1,3 +1,4 @@
-//! The CPU side: batch evaluation of compiled expressions.
+//! The CPU side: batch evaluation of compiled expressions and the intersection test.
 
+pub mod decide;
 pub mod program;

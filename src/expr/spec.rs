@@ -49,9 +49,15 @@ pub struct TriangulationSpec {
     pub offset: Option<Vec<f64>>,
     /// kind = "custom": vertex = matrix * v + offset.
     pub matrix: Option<Vec<Vec<f64>>>,
-    /// Seed of an optional random rotation.
+    /// Seed of the random rotation (default 1: the lattice is put in generic position, so
+    /// that its structure does not line up with coordinate-aligned equations).
     pub rotation_seed: Option<u64>,
+    /// `false` keeps the lattice unrotated (the default for kind = "custom").
+    pub rotate: Option<bool>,
 }
+
+/// Default rotation seed for coxeter and freudenthal triangulations.
+pub const DEFAULT_ROTATION_SEED: u64 = 1;
 
 /// Default edge when neither spec nor flags give one.
 pub const DEFAULT_EDGE: f64 = 0.1;
@@ -86,8 +92,15 @@ impl TriangulationSpec {
             (None, None) if kind == TriangulationKind::Custom => b.offset_rule(Offset::Zero),
             (None, None) => b,
         };
-        if let Some(s) = self.rotation_seed {
-            b = b.rotation_seed(s);
+        let rotate = self.rotate.unwrap_or(kind != TriangulationKind::Custom);
+        match (rotate, self.rotation_seed) {
+            (false, Some(_)) => {
+                return Err(Error::Spec(
+                    "rotate = false and a rotation_seed: give one or the other".into(),
+                ))
+            }
+            (true, s) => b = b.rotation_seed(s.unwrap_or(DEFAULT_ROTATION_SEED)),
+            (false, None) => {}
         }
         let t = b.build()?;
         if t.dim() != d {

@@ -94,6 +94,31 @@ pub struct TriangulationBuilder {
     matrix: Option<Vec<Vec<f64>>>,
 }
 
+/// Longest edge of a d-simplex for the lattice map `a` (row-major d x d): the longest A e_S
+/// over non-empty S of {1..d} (every edge is +-A e_S); for d > 16, the upper bound
+/// sum_j |A e_j|.
+fn longest_edge_of(a: &[f64], d: usize) -> f64 {
+    let col = |j: usize| -> Vec<f64> { (0..d).map(|i| a[i * d + j]).collect() };
+    if d > 16 {
+        return (0..d)
+            .map(|j| col(j).iter().map(|v| v * v).sum::<f64>().sqrt())
+            .sum();
+    }
+    let mut best: f64 = 0.0;
+    for s in 1usize..(1 << d) {
+        let mut len2 = 0.0;
+        for i in 0..d {
+            let x: f64 = (0..d)
+                .filter(|j| s >> j & 1 == 1)
+                .map(|j| a[i * d + j])
+                .sum();
+            len2 += x * x;
+        }
+        best = best.max(len2.sqrt());
+    }
+    best
+}
+
 /// Longest edge of a d-simplex of the unscaled lattice map.
 fn unit_longest_edge(kind: TriangulationKind, d: usize) -> f64 {
     match kind {
@@ -235,6 +260,11 @@ impl TriangulationBuilder {
                 Linear::Dense { a, lu }
             }
         };
+        if let Linear::Dense { a, .. } = &t.linear {
+            if kind == TriangulationKind::Custom {
+                t.edge = longest_edge_of(a, d);
+            }
+        }
         t.offset = match self.offset {
             Offset::Zero => vec![0.0; d],
             Offset::Given(b) => {
@@ -306,7 +336,7 @@ impl Triangulation {
         self.kind
     }
 
-    /// Longest edge of a d-simplex (NaN for a custom matrix).
+    /// Longest edge of a d-simplex (for a custom matrix with d > 16, an upper bound).
     pub fn edge(&self) -> f64 {
         self.edge
     }

@@ -5,7 +5,7 @@ use foldhash::fast::FixedState;
 use hashbrown::HashTable;
 use std::hash::BuildHasher;
 
-use super::simplex::{check_dim, Simplex};
+use super::simplex::{check_dim, Simplex, MAX_DIM};
 use crate::error::{Error, Result};
 
 /// Packs canonical l-simplices of R^d into `words()` u64 words: each base coordinate biased
@@ -61,20 +61,11 @@ impl KeyCodec {
                 s.ambient_dim()
             )));
         }
-        let out = &mut out[..self.words];
-        out.fill(0);
-        let bias = 1i64 << (self.coord_bits - 1);
-        let mut w = BitWriter { out, pos: 0 };
-        for &c in s.base() {
-            let v = c as i64 + bias;
-            if v < 0 || v >= 2 * bias {
-                return Err(Error::KeyOverflow {
-                    value: c as i64,
-                    bits: self.coord_bits,
-                });
-            }
-            w.put(v as u64, self.coord_bits);
-        }
+        self.encode_vertex(s.base(), out)?;
+        let mut w = BitWriter {
+            out: &mut out[..self.words],
+            pos: self.d * self.coord_bits as usize,
+        };
         if self.part_bits > 0 {
             let mut index = [0u8; 64];
             for (p, &mask) in s.parts().iter().enumerate() {
@@ -91,14 +82,15 @@ impl KeyCodec {
         Ok(())
     }
 
-    /// Unpacks a key written by [`KeyCodec::encode`].
+    /// Unpacks a key written by [`KeyCodec::encode`] (no heap allocation).
     pub fn decode(&self, key: &[u64]) -> Simplex {
         let bias = 1i64 << (self.coord_bits - 1);
         let mut r = BitReader { words: key, pos: 0 };
-        let v0: Vec<i32> = (0..self.d)
-            .map(|_| (r.get(self.coord_bits) as i64 - bias) as i32)
-            .collect();
-        let mut parts = vec![0u64; self.l + 1];
+        let mut v0 = [0i32; MAX_DIM];
+        for c in v0.iter_mut().take(self.d) {
+            *c = (r.get(self.coord_bits) as i64 - bias) as i32;
+        }
+        let mut parts = [0u64; MAX_DIM + 1];
         parts[self.l] |= 1 << self.d;
         for e in 0..self.d {
             let p = if self.part_bits > 0 {
@@ -108,7 +100,52 @@ impl KeyCodec {
             };
             parts[p] |= 1 << e;
         }
-        Simplex::from_masks(&v0, &parts).expect("key decodes to a valid simplex")
+        Simplex::from_masks(&v0[..self.d], &parts[..=self.l])
+            .expect("key decodes to a valid simplex")
+    }
+
+    /// Bits per base coordinate.
+    pub fn coord_bits(&self) -> u32 {
+        self.coord_bits
+    }
+
+    /// Ambient dimension d.
+    pub fn ambient_dim(&self) -> usize {
+        self.d
+    }
+
+    /// Dimension l of the simplices it packs.
+    pub fn simplex_dim(&self) -> usize {
+        self.l
+    }
+
+    /// Packs a lattice vertex (d coordinates, `coord_bits` each) into `out[..words()]`: the
+    /// same layout as the base-vertex field of a key.
+    pub fn encode_vertex(&self, v: &[i32], out: &mut [u64]) -> Result<()> {
+        let out = &mut out[..self.words];
+        out.fill(0);
+        let bias = 1i64 << (self.coord_bits - 1);
+        let mut w = BitWriter { out, pos: 0 };
+        for &c in &v[..self.d] {
+            let x = c as i64 + bias;
+            if x < 0 || x >= 2 * bias {
+                return Err(Error::KeyOverflow {
+                    value: c as i64,
+                    bits: self.coord_bits,
+                });
+            }
+            w.put(x as u64, self.coord_bits);
+        }
+        Ok(())
+    }
+
+    /// Unpacks a vertex written by [`KeyCodec::encode_vertex`] into `out` (d coordinates).
+    pub fn decode_vertex(&self, key: &[u64], out: &mut [i32]) {
+        let bias = 1i64 << (self.coord_bits - 1);
+        let mut r = BitReader { words: key, pos: 0 };
+        for c in out.iter_mut().take(self.d) {
+            *c = (r.get(self.coord_bits) as i64 - bias) as i32;
+        }
     }
 }
 

@@ -1,0 +1,338 @@
+// Index loops read as the textbook elimination they are.
+#![allow(clippy::needless_range_loop)]
+//! The intersection test for one k-simplex, in f64 with a certified fast path and an exact
+//! fallback.
+//!
+//! With vertex values F_0..F_k (each in R^k) the labelling matrix is L = [1 .. 1; F_0 .. F_k].
+//! The simplex is crossed iff L is nonsingular and L^-1 is lexicographically positive (every
+//! row's first non-zero entry is > 0): the completely-labelled test of PL continuation. Its
+//! first column is lambda, the barycentric coordinates of the crossing point; the other
+//! columns only matter for exact ties (a lambda_i that is exactly 0), where they break the tie
+//! as if f were shifted by (eps, eps^2, .., eps^k). With that rule every (k+1)-simplex has 0
+//! or 2 crossed facets, even when f vanishes exactly at lattice vertices.
+//!
+//! Fast path: Gauss-Jordan inversion with partial pivoting and a first-order forward error
+//! bound per lambda_i; a decision is taken when every sign it needs is outside its bound.
+//! Otherwise the same test runs in exact rational arithmetic on the f64 values, so that the
+//! decision is always the exact one for the values given.
+
+use num_bigint::BigInt;
+use num_traits::{Float, One, Signed, ToPrimitive, Zero};
+
+/// The verdict on one k-simplex.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[repr(u8)]
+pub enum Status {
+    /// Completely labelled: M crosses the simplex; lambda holds the crossing point.
+    Crossed = 0,
+    /// Not crossed.
+    Outside = 1,
+    /// L is singular (exactly, for the values given): not crossed.
+    Degenerate = 2,
+    /// A vertex value is NaN or infinite: not crossed.
+    NonFinite = 3,
+}
+
+impl Status {
+    /// Whether the simplex is crossed.
+    #[inline]
+    pub fn crossed(self) -> bool {
+        self == Status::Crossed
+    }
+}
+
+/// A decision and how it was reached.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Decision {
+    /// The verdict.
+    pub status: Status,
+    /// Whether the exact rational path decided it (the f64 margin was too small).
+    pub exact: bool,
+}
+
+/// Reusable work space for [`Decider::decide`] (one per thread).
+#[derive(Clone, Debug)]
+pub struct Decider {
+    n: usize,
+    l0: Vec<f64>,
+    a: Vec<f64>,
+    inv: Vec<f64>,
+    abs_l: Vec<f64>,
+}
+
+/// Safety factor on the first-order error bound, per unit of n.
+const BOUND_FACTOR: f64 = 16.0;
+
+impl Decider {
+    /// Work space for k-simplices (k equations).
+    pub fn new(k: usize) -> Self {
+        let n = k + 1;
+        Decider {
+            n,
+            l0: vec![0.0; n * n],
+            a: vec![0.0; n * n],
+            inv: vec![0.0; n * n],
+            abs_l: vec![0.0; n],
+        }
+    }
+
+    /// Decides the k-simplex whose vertex values are `values` (k+1 rows of k, vertex by
+    /// vertex). Writes lambda (k+1 entries, summing to 1) when crossed.
+    pub fn decide(&mut self, values: &[f64], lambda: &mut [f64]) -> Decision {
+        let n = self.n;
+        let k = n - 1;
+        debug_assert_eq!(values.len(), n * k);
+        let fast = |status| Decision {
+            status,
+            exact: false,
+        };
+        if values.iter().any(|v| !v.is_finite()) {
+            return fast(Status::NonFinite);
+        }
+        // Sign filter: a component with one strict sign at every vertex rules out a crossing.
+        for c in 0..k {
+            let (mut pos, mut neg) = (true, true);
+            for j in 0..n {
+                let v = values[j * k + c];
+                pos &= v > 0.0;
+                neg &= v < 0.0;
+            }
+            if pos || neg {
+                return fast(Status::Outside);
+            }
+        }
+        match self.fast_path(values, lambda) {
+            Some(status) => fast(status),
+            None => Decision {
+                status: exact_decision(values, k, lambda),
+                exact: true,
+            },
+        }
+    }
+
+    /// Gauss-Jordan in f64; `None` when a needed sign is not certain.
+    fn fast_path(&mut self, values: &[f64], lambda: &mut [f64]) -> Option<Status> {
+        let n = self.n;
+        let k = n - 1;
+        let (l0, a, inv) = (&mut self.l0, &mut self.a, &mut self.inv);
+        // Row r of L scaled by a power of two near 1/max|row|: exact, and it changes neither
+        // lambda nor the signs of L^-1's entries (columns of L^-1 scale by positive factors).
+        l0[..n].fill(1.0);
+        for r in 1..n {
+            let big = (0..n).fold(0.0f64, |m, j| m.max(values[j * k + r - 1].abs()));
+            let s = pow2_inverse(big);
+            for j in 0..n {
+                l0[r * n + j] = values[j * k + r - 1] * s;
+            }
+        }
+        a.copy_from_slice(l0);
+        inv.fill(0.0);
+        for i in 0..n {
+            inv[i * n + i] = 1.0;
+        }
+        let scale = a.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+        let tiny = scale * f64::EPSILON * n as f64;
+        for c in 0..n {
+            let mut p = c;
+            for r in c + 1..n {
+                if a[r * n + c].abs() > a[p * n + c].abs() {
+                    p = r;
+                }
+            }
+            if a[p * n + c].abs() <= tiny {
+                return None;
+            }
+            if p != c {
+                for t in 0..n {
+                    a.swap(p * n + t, c * n + t);
+                    inv.swap(p * n + t, c * n + t);
+                }
+            }
+            let r_piv = 1.0 / a[c * n + c];
+            for t in c..n {
+                a[c * n + t] *= r_piv;
+            }
+            for t in 0..n {
+                inv[c * n + t] *= r_piv;
+            }
+            for r in 0..n {
+                if r == c {
+                    continue;
+                }
+                let f = a[r * n + c];
+                if f == 0.0 {
+                    continue;
+                }
+                for t in c..n {
+                    a[r * n + t] -= f * a[c * n + t];
+                }
+                for t in 0..n {
+                    inv[r * n + t] -= f * inv[c * n + t];
+                }
+            }
+        }
+        for i in 0..n {
+            lambda[i] = inv[i * n];
+        }
+        // |L| |lambda|, row by row (row 0 of L is all ones).
+        let abs_l = &mut self.abs_l;
+        for r in 0..n {
+            abs_l[r] = (0..n).map(|j| (l0[r * n + j] * lambda[j]).abs()).sum();
+        }
+        let unit = BOUND_FACTOR * n as f64 * f64::EPSILON;
+        let mut all_positive = true;
+        for i in 0..n {
+            let li = lambda[i];
+            if !li.is_finite() {
+                return None;
+            }
+            let err: f64 = unit * (0..n).map(|j| inv[i * n + j].abs() * abs_l[j]).sum::<f64>();
+            if li < -err {
+                // Row i of L^-1 starts with a certainly negative entry.
+                return Some(Status::Outside);
+            }
+            all_positive &= li > err;
+        }
+        all_positive.then_some(Status::Crossed)
+    }
+}
+
+/// A power of two near 1/v (1 for 0 or subnormal v): scaling by it is exact.
+#[inline]
+fn pow2_inverse(v: f64) -> f64 {
+    let e = ((v.to_bits() >> 52) & 0x7ff) as i64;
+    if e == 0 || e == 0x7ff {
+        return 1.0;
+    }
+    // v in [2^(e-1023), 2^(e-1022)): multiply by 2^(1023-e), kept in the normal range.
+    let t = (2046 - e).clamp(1, 2046);
+    f64::from_bits((t as u64) << 52)
+}
+
+/// The completely-labelled test in exact integer arithmetic on the given f64 values.
+///
+/// Each row of L is scaled by a power of two to integers (which changes neither lambda nor
+/// the signs in L^-1), then fraction-free Gaussian elimination (Bareiss) gives D = det(PL)
+/// and Y = D L^-1 in integers: row i of L^-1 is lexicographically positive iff the first
+/// non-zero entry of row i of Y has the sign of D.
+pub fn exact_decision(values: &[f64], k: usize, lambda: &mut [f64]) -> Status {
+    let n = k + 1;
+    let w = 2 * n;
+    // [L | I] in integers.
+    let mut m: Vec<BigInt> = vec![BigInt::zero(); n * w];
+    for j in 0..n {
+        m[j] = BigInt::one();
+    }
+    for r in 1..n {
+        let row: Vec<(i64, i32)> = (0..n).map(|j| decompose(values[j * k + r - 1])).collect();
+        let low = row
+            .iter()
+            .filter(|(mant, _)| *mant != 0)
+            .map(|&(_, e)| e)
+            .min()
+            .unwrap_or(0);
+        for (j, &(mant, e)) in row.iter().enumerate() {
+            m[r * w + j] = BigInt::from(mant) << ((e - low) as usize);
+        }
+    }
+    for i in 0..n {
+        m[i * w + n + i] = BigInt::one();
+    }
+    // Forward elimination: after step c, m[r][t] for r > c is a (c+1)-minor of [L | I].
+    let mut prev = BigInt::one();
+    for c in 0..n {
+        let Some(p) = (c..n).find(|&r| !m[r * w + c].is_zero()) else {
+            return Status::Degenerate;
+        };
+        if p != c {
+            for t in 0..w {
+                m.swap(p * w + t, c * w + t);
+            }
+        }
+        for r in c + 1..n {
+            for t in c + 1..w {
+                let v = (&m[c * w + c] * &m[r * w + t] - &m[r * w + c] * &m[c * w + t]) / &prev;
+                m[r * w + t] = v;
+            }
+            m[r * w + c] = BigInt::zero();
+        }
+        prev = m[c * w + c].clone();
+    }
+    // Fraction-free back substitution: y = D x for every right-hand side.
+    let det = prev;
+    let mut y: Vec<BigInt> = vec![BigInt::zero(); n * n];
+    for t in 0..n {
+        for i in (0..n).rev() {
+            let mut acc = &det * &m[i * w + n + t];
+            for j in i + 1..n {
+                acc -= &m[i * w + j] * &y[j * n + t];
+            }
+            y[i * n + t] = acc / &m[i * w + i];
+        }
+    }
+    let positive = det.is_positive();
+    for i in 0..n {
+        match y[i * n..(i + 1) * n].iter().find(|v| !v.is_zero()) {
+            Some(v) if v.is_positive() == positive => {}
+            _ => return Status::Outside,
+        }
+    }
+    for i in 0..n {
+        lambda[i] = ratio_to_f64(&y[i * n], &det);
+    }
+    Status::Crossed
+}
+
+/// v = mantissa * 2^exponent exactly (v finite).
+fn decompose(v: f64) -> (i64, i32) {
+    let (mant, exp, sign) = v.integer_decode();
+    (sign as i64 * mant as i64, exp as i32)
+}
+
+/// a / b as f64, to about 1e-16 relative, for integers of any size.
+fn ratio_to_f64(a: &BigInt, b: &BigInt) -> f64 {
+    let shift = a.bits().max(b.bits()).saturating_sub(62);
+    let (a, b) = (a >> shift, b >> shift);
+    match (a.to_f64(), b.to_f64()) {
+        (Some(x), Some(y)) if y != 0.0 => x / y,
+        _ => f64::NAN,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn edge_with_a_zero_end_is_decided_by_the_tie_rule() {
+        let mut d = Decider::new(1);
+        let mut l = [0.0; 2];
+        // f = 0 at v0 counts as slightly negative (f shifted by +eps... i.e. f - eps < 0).
+        assert_eq!(d.decide(&[0.0, 1.0], &mut l).status, Status::Crossed);
+        assert_eq!(d.decide(&[0.0, -1.0], &mut l).status, Status::Outside);
+        assert_eq!(d.decide(&[1.0, 0.0], &mut l).status, Status::Crossed);
+        assert_eq!(d.decide(&[-2.0, 2.0], &mut l).status, Status::Crossed);
+        assert_eq!(l, [0.5, 0.5]);
+        assert_eq!(d.decide(&[0.0, 0.0], &mut l).status, Status::Degenerate);
+        assert_eq!(d.decide(&[f64::NAN, 1.0], &mut l).status, Status::NonFinite);
+    }
+
+    #[test]
+    fn fast_and_exact_paths_agree_on_random_triangles() {
+        use rand::{Rng, SeedableRng};
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(7);
+        let mut d = Decider::new(2);
+        let (mut l1, mut l2) = ([0.0; 3], [0.0; 3]);
+        for _ in 0..2000 {
+            let v: Vec<f64> = (0..6).map(|_| rng.random_range(-1.0..1.0)).collect();
+            let fast = d.decide(&v, &mut l1);
+            let exact = exact_decision(&v, 2, &mut l2);
+            assert_eq!(fast.status, exact, "values {v:?}");
+            if exact == Status::Crossed {
+                for i in 0..3 {
+                    assert!((l1[i] - l2[i]).abs() < 1e-9);
+                }
+            }
+        }
+    }
+}

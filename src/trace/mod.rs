@@ -1,0 +1,389 @@
+//! Manifold tracing: the sample S of k-simplices of T crossed by M = f^-1(0), with one point
+//! of M-hat in each, found from seeds ([`trace`]) or by scanning a box ([`exhaustive`]).
+//!
+//! ```
+//! use isomesh::expr::preset;
+//! use isomesh::trace::{trace, CpuOracle, TraceOptions};
+//!
+//! let circle = preset("circle", &[]).unwrap();
+//! let tri = circle.triangulation.build(2).unwrap();
+//! let oracle = CpuOracle::new(&circle.system);
+//! let opts = TraceOptions { seeds: circle.seeds.clone(), ..TraceOptions::default() };
+//! let s = trace(&circle.system, &tri, &oracle, &opts).unwrap();
+//! assert!(s.len() > 100);
+//! for (simplex, point) in s.iter().take(3) {
+//!     assert_eq!(simplex.dim(), 1);
+//!     assert!((point[0].hypot(point[1]) - 1.0).abs() < 1e-2);
+//! }
+//! ```
+
+mod engine;
+mod exhaustive;
+mod oracle;
+mod region;
+mod seeds;
+mod table;
+
+use std::sync::atomic::AtomicBool;
+use std::sync::Arc;
+use std::time::Instant;
+
+use serde::Serialize;
+
+pub use exhaustive::MAX_SCAN_DIM;
+pub use oracle::{CpuOracle, Oracle};
+pub use region::{coord_bits, in_box, lattice_bounds};
+pub use seeds::SEED_TOLERANCE;
+
+use crate::error::{Error, Result};
+use crate::expr::spec::check_box;
+use crate::expr::ImplicitFunction;
+use crate::triangulation::{KeyCodec, Simplex, Triangulation};
+use engine::Engine;
+use table::Table;
+
+/// Box samples for the automatic seed search when no seed is given.
+pub const DEFAULT_SEARCH_SAMPLES: usize = 512;
+
+/// What a trace starts from and what bounds it.
+#[derive(Clone)]
+pub struct TraceOptions<'a> {
+    /// The box [lo, hi] per axis: only crossed simplices whose point lies in it are kept, so
+    /// it acts as the boundary of non-compact manifolds. Needed for the seed search and the
+    /// exhaustive scan.
+    pub bbox: Option<Vec<[f64; 2]>>,
+    /// Points on or near M (Newton-projected first).
+    pub seeds: Vec<Vec<f64>>,
+    /// Random box points to project onto M as extra seeds: `None` means
+    /// [`DEFAULT_SEARCH_SAMPLES`] when no seed is given and none otherwise.
+    pub search_samples: Option<usize>,
+    /// Seed of the box sampling.
+    pub search_seed: u64,
+    /// Stop (keeping what was traced) before the trace's memory passes this many bytes.
+    pub max_memory: u64,
+    /// Set to true to stop cleanly (Ctrl-C).
+    pub cancel: Option<Arc<AtomicBool>>,
+    /// Called after every level.
+    pub progress: Option<&'a (dyn Fn(&Progress) + Sync)>,
+}
+
+impl Default for TraceOptions<'_> {
+    fn default() -> Self {
+        TraceOptions {
+            bbox: None,
+            seeds: Vec::new(),
+            search_samples: None,
+            search_seed: 1,
+            max_memory: crate::memory::default_limit(),
+            cancel: None,
+            progress: None,
+        }
+    }
+}
+
+/// Where a trace stands, after each level.
+#[derive(Clone, Copy, Debug)]
+pub struct Progress {
+    /// Crossed simplices so far.
+    pub simplices: usize,
+    /// Levels done.
+    pub level: u64,
+    /// Simplices found by the last level.
+    pub frontier: usize,
+    /// Lattice vertices evaluated.
+    pub vertices: usize,
+}
+
+/// Why a trace stopped early (what it found is kept).
+#[derive(Clone, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum StopReason {
+    /// The cancel flag was set.
+    Interrupted,
+    /// Going on would pass the memory limit.
+    MemoryLimit {
+        /// Bytes the next level would have needed.
+        needed: u64,
+        /// The limit.
+        limit: u64,
+    },
+}
+
+impl std::fmt::Display for StopReason {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            StopReason::Interrupted => write!(f, "interrupted"),
+            StopReason::MemoryLimit { needed, limit } => write!(
+                f,
+                "stopped before passing the memory limit: the next level needs {:.2} GiB, the \
+                 limit is {:.2} GiB (raise --max-memory, or use a larger edge or a smaller box)",
+                *needed as f64 / (1u64 << 30) as f64,
+                *limit as f64 / (1u64 << 30) as f64
+            ),
+        }
+    }
+}
+
+/// Counters of a trace or scan.
+#[derive(Clone, Debug, Default, Serialize)]
+pub struct TraceStats {
+    /// Breadth-first levels.
+    pub levels: u64,
+    /// k-simplices sent to the oracle.
+    pub oracle_calls: u64,
+    /// Decisions taken by the exact rational path.
+    pub exact_decisions: u64,
+    /// Candidates with a singular labelling matrix.
+    pub degenerate: u64,
+    /// Candidates with a non-finite vertex value.
+    pub non_finite: u64,
+    /// Lattice vertices where f was evaluated.
+    pub vertices: u64,
+    /// Connected components of S.
+    pub components: usize,
+    /// Projected box samples used as seeds.
+    pub seed_points: u64,
+    /// Wall time, seconds.
+    pub elapsed_s: f64,
+    /// Bytes held by the trace's own containers at the end.
+    pub memory_bytes: u64,
+    /// Set when the trace stopped early.
+    pub stopped: Option<StopReason>,
+}
+
+/// The sample S: crossed k-simplices (as compact keys) with their points, in a deterministic
+/// order (trace: level by level, sorted within a level; scan: sorted keys).
+#[derive(Clone, Debug)]
+pub struct Sample {
+    codec: KeyCodec,
+    stride: usize,
+    keys: Vec<u64>,
+    points: Vec<f64>,
+    /// What it took.
+    pub stats: TraceStats,
+}
+
+impl Sample {
+    /// Number of crossed k-simplices.
+    pub fn len(&self) -> usize {
+        self.points.len() / self.ambient_dim()
+    }
+    /// Whether S is empty.
+    pub fn is_empty(&self) -> bool {
+        self.points.is_empty()
+    }
+    /// d.
+    pub fn ambient_dim(&self) -> usize {
+        self.codec.ambient_dim()
+    }
+    /// k.
+    pub fn codim(&self) -> usize {
+        self.codec.simplex_dim()
+    }
+    /// The codec of the keys.
+    pub fn codec(&self) -> &KeyCodec {
+        &self.codec
+    }
+    /// Key `i` (`codec().words()` words).
+    pub fn key(&self, i: usize) -> &[u64] {
+        &self.keys[i * self.stride..i * self.stride + self.codec.words()]
+    }
+    /// Simplex `i`.
+    pub fn simplex(&self, i: usize) -> Simplex {
+        self.codec.decode(self.key(i))
+    }
+    /// Point `i` (d coordinates).
+    pub fn point(&self, i: usize) -> &[f64] {
+        let d = self.ambient_dim();
+        &self.points[i * d..(i + 1) * d]
+    }
+    /// All points, d per simplex.
+    pub fn points(&self) -> &[f64] {
+        &self.points
+    }
+    /// (simplex, point) pairs in order.
+    pub fn iter(&self) -> impl Iterator<Item = (Simplex, &[f64])> + '_ {
+        (0..self.len()).map(|i| (self.simplex(i), self.point(i)))
+    }
+    /// The keys in sorted order (to compare samples as sets).
+    pub fn sorted_keys(&self) -> Vec<&[u64]> {
+        let mut v: Vec<&[u64]> = (0..self.len()).map(|i| self.key(i)).collect();
+        v.sort_unstable();
+        v
+    }
+}
+
+/// What the engine and the scan share.
+pub(crate) struct TraceContext<'a> {
+    pub tri: &'a Triangulation,
+    pub oracle: &'a dyn Oracle,
+    pub codec: KeyCodec,
+    pub d: usize,
+    pub k: usize,
+    pub bbox: Option<&'a [[f64; 2]]>,
+    pub max_memory: u64,
+    pub cancel: Option<&'a AtomicBool>,
+    pub progress: Option<&'a (dyn Fn(&Progress) + Sync)>,
+}
+
+/// Calls `$f::<W>($args)` with W the supported key width at least `$words`.
+macro_rules! with_width {
+    ($words:expr, $f:ident ( $($arg:expr),* )) => {
+        match $words {
+            1 => $f::<1>($($arg),*),
+            2 => $f::<2>($($arg),*),
+            3 => $f::<3>($($arg),*),
+            4 => $f::<4>($($arg),*),
+            5..=6 => $f::<6>($($arg),*),
+            7..=8 => $f::<8>($($arg),*),
+            9..=12 => $f::<12>($($arg),*),
+            13..=16 => $f::<16>($($arg),*),
+            17..=24 => $f::<24>($($arg),*),
+            w => Err(Error::Trace(format!("simplex keys of {w} words are not supported"))),
+        }
+    };
+}
+
+fn context<'a>(
+    f: &dyn ImplicitFunction,
+    tri: &'a Triangulation,
+    oracle: &'a dyn Oracle,
+    opts: &'a TraceOptions,
+) -> Result<TraceContext<'a>> {
+    let (d, k) = (f.ambient_dim(), f.codim());
+    if tri.dim() != d {
+        return Err(Error::DimensionMismatch(format!(
+            "f takes {d} coordinates, the triangulation is of R^{}",
+            tri.dim()
+        )));
+    }
+    if k == 0 || k >= d {
+        return Err(Error::DimensionMismatch(format!(
+            "{k} equations in R^{d}: tracing needs 1 <= k < d"
+        )));
+    }
+    if let Some(b) = &opts.bbox {
+        check_box(b, d)?;
+    }
+    let bbox = opts.bbox.as_deref();
+    let codec = KeyCodec::new(d, k, coord_bits(tri, bbox))?;
+    Ok(TraceContext {
+        tri,
+        oracle,
+        codec,
+        d,
+        k,
+        bbox,
+        max_memory: opts.max_memory,
+        cancel: opts.cancel.as_deref(),
+        progress: opts.progress,
+    })
+}
+
+fn sample_from<const W: usize>(
+    codec: KeyCodec,
+    table: Table<W>,
+    points: Vec<f64>,
+    stats: TraceStats,
+) -> Sample {
+    Sample {
+        codec,
+        stride: W,
+        keys: table.into_words(),
+        points,
+        stats,
+    }
+}
+
+/// Traces M = f^-1(0) on `tri` from the seeds (and/or a box search) in `opts`, with `oracle`.
+/// An early stop (Ctrl-C, memory limit) still returns what was traced, with
+/// `stats.stopped` set.
+pub fn trace(
+    f: &dyn ImplicitFunction,
+    tri: &Triangulation,
+    oracle: &dyn Oracle,
+    opts: &TraceOptions,
+) -> Result<Sample> {
+    let ctx = context(f, tri, oracle, opts)?;
+    let search = opts.search_samples.unwrap_or(if opts.seeds.is_empty() {
+        DEFAULT_SEARCH_SAMPLES
+    } else {
+        0
+    });
+    if search > 0 && opts.bbox.is_none() {
+        return Err(Error::Trace(
+            "no seed and no box: give a seed point near M, or a box to search for it".into(),
+        ));
+    }
+    let mut seeds = Vec::with_capacity(opts.seeds.len());
+    for (i, s) in opts.seeds.iter().enumerate() {
+        let p = crate::expr::newton_project(f, s, SEED_TOLERANCE)
+            .map_err(|e| Error::Trace(format!("seed {} {s:?} is off the manifold: {e}", i + 1)))?;
+        if let Some(b) = &opts.bbox {
+            if !in_box(b, &p) {
+                return Err(Error::Trace(format!(
+                    "seed {} {s:?} projects to {p:?}, outside the box",
+                    i + 1
+                )));
+            }
+        }
+        seeds.push(p);
+    }
+    let words = ctx.codec.words();
+    with_width!(words, trace_with(f, ctx, &seeds, search, opts.search_seed))
+}
+
+fn trace_with<const W: usize>(
+    f: &dyn ImplicitFunction,
+    ctx: TraceContext,
+    seeds: &[Vec<f64>],
+    search: usize,
+    search_seed: u64,
+) -> Result<Sample> {
+    let start = Instant::now();
+    let codec = ctx.codec;
+    let bbox = ctx.bbox.map(<[_]>::to_vec);
+    let mut engine: Engine<W> = Engine::new(ctx);
+    for s in seeds {
+        if engine.stats.stopped.is_some() {
+            break;
+        }
+        engine.trace_from_point(s)?;
+    }
+    if search > 0 && engine.stats.stopped.is_none() {
+        let b = bbox.expect("checked by trace()");
+        engine.trace_from_box(f, &b, search, search_seed)?;
+    }
+    let mut stats = engine.stats.clone();
+    stats.memory_bytes = engine.bytes() as u64;
+    stats.elapsed_s = start.elapsed().as_secs_f64();
+    Ok(sample_from(codec, engine.s, engine.points, stats))
+}
+
+/// Every crossed k-simplex of `tri` whose point lies in `opts.bbox` (required), with no seed.
+/// Components are counted by a union-find over shared (k+1)-cofaces.
+pub fn exhaustive(
+    f: &dyn ImplicitFunction,
+    tri: &Triangulation,
+    oracle: &dyn Oracle,
+    opts: &TraceOptions,
+) -> Result<Sample> {
+    let ctx = context(f, tri, oracle, opts)?;
+    if opts.bbox.is_none() {
+        return Err(Error::Trace(
+            "the exhaustive scan needs a box (spec `box`, or --box)".into(),
+        ));
+    }
+    let words = ctx.codec.words();
+    with_width!(words, exhaustive_with(ctx))
+}
+
+fn exhaustive_with<const W: usize>(ctx: TraceContext) -> Result<Sample> {
+    let start = Instant::now();
+    let bbox = ctx.bbox.expect("checked by exhaustive()");
+    let (table, points, mut stats) = exhaustive::scan::<W>(&ctx, bbox)?;
+    stats.components = exhaustive::count_components(&ctx.codec, &table)?;
+    stats.memory_bytes = (table.bytes() + points.capacity() * 8) as u64;
+    stats.elapsed_s = start.elapsed().as_secs_f64();
+    Ok(sample_from(ctx.codec, table, points, stats))
+}

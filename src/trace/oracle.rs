@@ -1,0 +1,109 @@
+//! The intersection oracle behind one trait, so that tracing and the exhaustive scan run the
+//! same on every backend: values of f at lattice vertices, then decisions on k-simplices given
+//! as rows of vertex indices.
+
+use rayon::prelude::*;
+
+use crate::cpu::decide::{Decider, Status};
+use crate::error::Result;
+use crate::expr::ImplicitFunction;
+use crate::triangulation::Triangulation;
+
+/// Vertices per evaluation chunk, and simplices per decision chunk.
+const CHUNK: usize = 2048;
+
+/// A backend that evaluates f and decides k-simplices, one large batch per call.
+pub trait Oracle: Sync {
+    /// A name for reports ("cpu", "gpu: <adapter>").
+    fn name(&self) -> String;
+
+    /// f at lattice vertices: `lattice` holds n rows of d, `values` gets n rows of k.
+    fn eval_vertices(&self, tri: &Triangulation, lattice: &[i32], values: &mut [f64])
+        -> Result<()>;
+
+    /// Decides n k-simplices: `simplices` holds n rows of k+1 indices of rows of `values`.
+    /// Writes a status per simplex and, for crossed ones, lambda (n rows of k+1). Returns how
+    /// many decisions needed the exact path.
+    fn decide(
+        &self,
+        values: &[f64],
+        simplices: &[u32],
+        status: &mut [Status],
+        lambda: &mut [f64],
+    ) -> Result<u64>;
+}
+
+/// The reference oracle: f64 on the CPU, parallel with rayon.
+pub struct CpuOracle<'f> {
+    f: &'f dyn ImplicitFunction,
+}
+
+impl<'f> CpuOracle<'f> {
+    /// The CPU oracle for `f`.
+    pub fn new(f: &'f dyn ImplicitFunction) -> Self {
+        CpuOracle { f }
+    }
+}
+
+impl Oracle for CpuOracle<'_> {
+    fn name(&self) -> String {
+        "cpu".into()
+    }
+
+    fn eval_vertices(
+        &self,
+        tri: &Triangulation,
+        lattice: &[i32],
+        values: &mut [f64],
+    ) -> Result<()> {
+        let (d, k) = (tri.dim(), self.f.codim());
+        lattice
+            .par_chunks(CHUNK * d)
+            .zip(values.par_chunks_mut(CHUNK * k))
+            .for_each_init(Vec::new, |x, (lat, out)| {
+                x.resize(lat.len(), 0.0);
+                for (v, p) in lat.chunks_exact(d).zip(x.chunks_exact_mut(d)) {
+                    tri.vertex_coords(v, p);
+                }
+                self.f.eval_batch(x, out);
+            });
+        Ok(())
+    }
+
+    fn decide(
+        &self,
+        values: &[f64],
+        simplices: &[u32],
+        status: &mut [Status],
+        lambda: &mut [f64],
+    ) -> Result<u64> {
+        let k = self.f.codim();
+        let n = k + 1;
+        let exact = simplices
+            .par_chunks(CHUNK * n)
+            .zip(status.par_chunks_mut(CHUNK))
+            .zip(lambda.par_chunks_mut(CHUNK * n))
+            .map_init(
+                || (Decider::new(k), vec![0.0; n * k]),
+                |(decider, local), ((idx, st), lam)| {
+                    let mut exact = 0;
+                    for ((row, s), l) in idx
+                        .chunks_exact(n)
+                        .zip(st.iter_mut())
+                        .zip(lam.chunks_exact_mut(n))
+                    {
+                        for (j, &v) in row.iter().enumerate() {
+                            let v = v as usize;
+                            local[j * k..(j + 1) * k].copy_from_slice(&values[v * k..(v + 1) * k]);
+                        }
+                        let dec = decider.decide(local, l);
+                        *s = dec.status;
+                        exact += dec.exact as u64;
+                    }
+                    exact
+                },
+            )
+            .sum();
+        Ok(exact)
+    }
+}

@@ -1,0 +1,143 @@
+//! Starting traces: from a point near M (Newton-projected, then the crossed k-faces of the
+//! d-simplices around it), or from points found by sampling a box.
+
+use foldhash::fast::FixedState;
+use hashbrown::HashSet;
+use rand::{Rng, SeedableRng};
+use rayon::prelude::*;
+
+use super::engine::Engine;
+use super::region::in_box;
+use super::table::Key;
+use crate::error::{Error, Result};
+use crate::expr::{newton_project, ImplicitFunction};
+use crate::triangulation::Simplex;
+
+/// How many rings of d-simplices around a seed are searched for a crossed k-face.
+const SEED_RINGS: usize = 2;
+/// Newton tolerance for seeds.
+pub const SEED_TOLERANCE: f64 = 1e-10;
+
+/// A d-simplex having `s` as a face: every part split into singletons in element order (the
+/// last one keeps d+1 last, so the result is canonical).
+fn full_coface(s: &Simplex) -> Simplex {
+    let mut parts = Vec::with_capacity(s.ambient_dim() + 1);
+    for &p in s.parts() {
+        let mut m = p;
+        while m != 0 {
+            parts.push(m & m.wrapping_neg());
+            m &= m - 1;
+        }
+    }
+    Simplex::from_masks(s.base(), &parts).expect("a refinement of a valid simplex")
+}
+
+impl<const W: usize> Engine<'_, W> {
+    /// Traces the component(s) of M next to the point `x` (on M or close to it) that S does
+    /// not hold yet; returns how many new components were traced. Errors if no crossed
+    /// k-simplex lies within two rings of d-simplices around `x`.
+    pub fn trace_from_point(&mut self, x: &[f64]) -> Result<usize> {
+        let (d, k) = (self.ctx.d, self.ctx.k);
+        let first = full_coface(&self.ctx.tri.locate(x)?);
+        let mut seen: HashSet<Simplex, FixedState> = HashSet::with_hasher(FixedState::default());
+        seen.insert(first.clone());
+        let mut ring = vec![first];
+        for _ in 0..=SEED_RINGS {
+            let mut faces: Vec<Key<W>> = Vec::new();
+            let mut key = [0u64; W];
+            for s in &ring {
+                let mut err = None;
+                s.for_each_face(k, |f| match self.ctx.codec.encode(f, &mut key) {
+                    Ok(()) => faces.push(key),
+                    Err(e) => err = Some(e),
+                })?;
+                if let Some(e) = err {
+                    return Err(e);
+                }
+            }
+            faces.sort_unstable();
+            faces.dedup();
+            let verdicts = self.evaluate(&faces)?;
+            let mut hits: Vec<(f64, Key<W>, Vec<f64>)> = self
+                .crossed_points(&faces, &verdicts)
+                .into_iter()
+                .filter(|(_, p)| self.ctx.bbox.is_none_or(|b| in_box(b, p)))
+                .map(|(i, p)| {
+                    let dist = p.iter().zip(x).map(|(a, b)| (a - b) * (a - b)).sum();
+                    (dist, faces[i], p)
+                })
+                .collect();
+            if !hits.is_empty() {
+                hits.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+                let mut traced = 0;
+                for (_, key, p) in hits {
+                    if self.stats.stopped.is_some() {
+                        break;
+                    }
+                    let (i, new) = self.s.insert(&key)?;
+                    if new {
+                        self.points.extend_from_slice(&p);
+                        self.run(i as usize..i as usize + 1)?;
+                        traced += 1;
+                    }
+                }
+                self.stats.components += traced;
+                return Ok(traced);
+            }
+            // Next ring: d-simplices sharing a facet with this one.
+            let mut next = Vec::new();
+            for s in &ring {
+                s.for_each_facet(|f| {
+                    f.for_each_cofacet(|c| {
+                        if seen.insert(c.clone()) {
+                            next.push(c.clone());
+                        }
+                    })
+                });
+            }
+            ring = next;
+        }
+        Err(Error::Trace(format!(
+            "no k-simplex near the seed {x:?} is crossed by M (the seed is off the manifold, or \
+             M is too small for edge = {}); d = {d}",
+            self.ctx.tri.edge()
+        )))
+    }
+
+    /// Traces every component met by Newton projections of `samples` random points of the
+    /// box (seeded, so the same each run).
+    pub fn trace_from_box(
+        &mut self,
+        f: &dyn ImplicitFunction,
+        bbox: &[[f64; 2]],
+        samples: usize,
+        seed: u64,
+    ) -> Result<()> {
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+        let starts: Vec<Vec<f64>> = (0..samples)
+            .map(|_| {
+                bbox.iter()
+                    .map(|[lo, hi]| rng.random_range(*lo..=*hi))
+                    .collect()
+            })
+            .collect();
+        let projected: Vec<Vec<f64>> = starts
+            .par_iter()
+            .filter_map(|x| newton_project(f, x, SEED_TOLERANCE).ok())
+            .filter(|p| in_box(bbox, p))
+            .collect();
+        self.stats.seed_points += projected.len() as u64;
+        for p in projected {
+            if self.stats.stopped.is_some() {
+                break;
+            }
+            // A projected point whose neighbourhood has no crossing (M clipped by the box,
+            // or a feature below the resolution) starts nothing.
+            match self.trace_from_point(&p) {
+                Ok(_) | Err(Error::Trace(_)) => {}
+                Err(e) => return Err(e),
+            }
+        }
+        Ok(())
+    }
+}

@@ -1,0 +1,426 @@
+//! Manifold tracing: agreement with the exhaustive scan, door in / door out, accuracy of the
+//! points, exact ties, determinism, and clean failures.
+
+use std::collections::HashSet;
+
+use isomesh::expr::{preset, EquationSystem, ImplicitFunction, Problem};
+use isomesh::trace::{exhaustive, trace, CpuOracle, Sample, StopReason, TraceOptions};
+use isomesh::triangulation::{Simplex, Triangulation};
+use isomesh::Error;
+
+/// Preset `name` with `params`, at longest edge `edge`.
+fn problem(name: &str, params: &[(&str, f64)], edge: f64) -> Problem {
+    let params: Vec<(String, f64)> = params.iter().map(|(n, v)| (n.to_string(), *v)).collect();
+    let mut p = preset(name, &params).unwrap();
+    p.triangulation.edge = Some(edge);
+    p
+}
+
+fn run(p: &Problem, bbox: Option<Vec<[f64; 2]>>, scan: bool) -> Sample {
+    let tri = p.triangulation.build(p.dim()).unwrap();
+    let oracle = CpuOracle::new(&p.system);
+    let opts = TraceOptions {
+        seeds: p.seeds.clone(),
+        bbox,
+        ..TraceOptions::default()
+    };
+    if scan {
+        exhaustive(&p.system, &tri, &oracle, &opts).unwrap()
+    } else {
+        trace(&p.system, &tri, &oracle, &opts).unwrap()
+    }
+}
+
+/// Every (k+1)-simplex with a crossed k-face has exactly two of them.
+fn assert_door_in_door_out(s: &Sample, what: &str) {
+    let keys: HashSet<Simplex> = s.iter().map(|(x, _)| x).collect();
+    let mut cofaces = 0;
+    for (sigma, _) in s.iter() {
+        for tau in sigma.cofacets() {
+            let crossed = tau.facets().iter().filter(|f| keys.contains(f)).count();
+            assert_eq!(crossed, 2, "{what}: {tau} has {crossed} crossed facets");
+            cofaces += 1;
+        }
+    }
+    assert!(cofaces > 0);
+}
+
+/// Points lie in their simplex and |f(p)| <= c * edge^2 for every component.
+fn assert_points_accurate(p: &Problem, s: &Sample, edge: f64, c: f64) {
+    let tri = p.triangulation.build(p.dim()).unwrap();
+    let mut f = vec![0.0; p.system.codim()];
+    let mut worst: f64 = 0.0;
+    for (sigma, x) in s.iter() {
+        let carrier = tri.locate_with_tolerance(x, 1e-9).unwrap();
+        assert!(
+            sigma.contains(&carrier),
+            "{}: point {x:?} lies in {carrier}, not in {sigma}",
+            p.name
+        );
+        p.system.eval_batch(x, &mut f);
+        worst = f.iter().fold(worst, |m, v| m.max(v.abs()));
+    }
+    assert!(
+        worst <= c * edge * edge,
+        "{}: max |f(p)| = {worst:e} > {c} * edge^2 = {:e}",
+        p.name,
+        c * edge * edge
+    );
+}
+
+fn cube(d: usize, r: f64) -> Vec<[f64; 2]> {
+    vec![[-r, r]; d]
+}
+
+/// (preset, parameters, box, two edges, C in |f(p)| <= C edge^2).
+type Case = (
+    &'static str,
+    Vec<(&'static str, f64)>,
+    Vec<[f64; 2]>,
+    [f64; 2],
+    f64,
+);
+
+/// The cases of [`Case`].
+///
+/// C is half a bound on the Hessian of f near M (linear interpolation error on a simplex of
+/// diameter `edge`): 1 for the quadrics |x|^2 - r^2; for the torus 2; for the quartic chair
+/// (|H| <= 16 inside |x| <= 1.3) 8.
+fn cases() -> Vec<Case> {
+    vec![
+        (
+            "sphere",
+            vec![("m", 1.0), ("d", 2.0)],
+            cube(2, 1.3),
+            [0.1, 0.05],
+            1.0,
+        ),
+        (
+            "sphere",
+            vec![("m", 1.0), ("d", 3.0)],
+            cube(3, 1.3),
+            [0.2, 0.12],
+            1.0,
+        ),
+        (
+            "sphere",
+            vec![("m", 2.0), ("d", 3.0)],
+            cube(3, 1.3),
+            [0.2, 0.1],
+            1.0,
+        ),
+        (
+            "sphere",
+            vec![("m", 2.0), ("d", 4.0)],
+            cube(4, 1.3),
+            [0.35, 0.25],
+            1.0,
+        ),
+        (
+            "sphere",
+            vec![("m", 3.0), ("d", 4.0)],
+            cube(4, 1.3),
+            [0.4, 0.25],
+            1.0,
+        ),
+        (
+            "sphere",
+            vec![("m", 2.0), ("d", 5.0)],
+            cube(5, 1.3),
+            [0.5, 0.4],
+            1.0,
+        ),
+        (
+            "sphere",
+            vec![("m", 3.0), ("d", 6.0)],
+            cube(6, 1.3),
+            [0.8, 0.6],
+            1.0,
+        ),
+        (
+            "torus",
+            vec![],
+            vec![[-1.6, 1.6], [-1.6, 1.6], [-0.6, 0.6]],
+            [0.1, 0.06],
+            2.0,
+        ),
+        ("chair", vec![], cube(3, 1.4), [0.1, 0.0707], 8.0),
+        ("flat-torus", vec![], cube(4, 1.2), [0.3, 0.2], 1.0),
+        (
+            "3-torus",
+            vec![],
+            vec![
+                [-0.7, 0.7],
+                [-0.7, 0.7],
+                [-1.2, 1.2],
+                [-1.2, 1.2],
+                [-2.2, 2.2],
+                [-2.2, 2.2],
+            ],
+            [0.7, 0.5555],
+            1.0,
+        ),
+    ]
+}
+
+#[test]
+fn tracing_finds_exactly_the_exhaustive_scan() {
+    for (name, params, bbox, edges, c) in cases() {
+        for edge in edges {
+            let p = problem(name, &params, edge);
+            let traced = run(&p, Some(bbox.clone()), false);
+            let scanned = run(&p, Some(bbox.clone()), true);
+            let what = format!("{name} {params:?} edge {edge}");
+            assert!(traced.len() > 10, "{what}: only {} simplices", traced.len());
+            assert_eq!(
+                traced.sorted_keys(),
+                scanned.sorted_keys(),
+                "{what}: trace {} vs scan {}",
+                traced.len(),
+                scanned.len()
+            );
+            assert_eq!(traced.stats.components, 1, "{what}");
+            assert_eq!(scanned.stats.components, 1, "{what}");
+            assert_door_in_door_out(&traced, &what);
+            assert_points_accurate(&p, &traced, edge, c);
+        }
+    }
+}
+
+#[test]
+fn tracing_without_a_box_closes_up() {
+    // The same manifolds with no box at all: the trace stops because M is closed.
+    for name in ["circle", "torus", "flat-torus"] {
+        let p = problem(name, &[], 0.1);
+        let s = run(&p, None, false);
+        assert_door_in_door_out(&s, name);
+        assert!(s.stats.stopped.is_none());
+    }
+}
+
+/// FK lattice scaled by 1/8 with offset 0 and no rotation: the six points (+-1, 0, 0).. are
+/// lattice vertices where f = |x|^2 - 1 is exactly 0, so ties must be broken exactly.
+#[test]
+fn vertices_exactly_on_the_sphere_still_give_a_closed_result() {
+    let sys = EquationSystem::parse_simple(3, &["x^2 + y^2 + z^2 - 1"]).unwrap();
+    let m = vec![
+        vec![0.125, 0.0, 0.0],
+        vec![0.0, 0.125, 0.0],
+        vec![0.0, 0.0, 0.125],
+    ];
+    let tri = Triangulation::custom(m).build().unwrap();
+    assert_eq!(tri.offset(), &[0.0, 0.0, 0.0]);
+    let mut f = [1.0];
+    let mut x = [0.0; 3];
+    tri.vertex_coords(&[8, 0, 0], &mut x);
+    sys.eval_batch(&x, &mut f);
+    assert_eq!(f[0], 0.0, "the lattice vertex (1, 0, 0) lies exactly on M");
+
+    let oracle = CpuOracle::new(&sys);
+    let opts = TraceOptions {
+        seeds: vec![vec![1.0, 0.0, 0.0]],
+        bbox: Some(cube(3, 1.5)),
+        ..TraceOptions::default()
+    };
+    let s = trace(&sys, &tri, &oracle, &opts).unwrap();
+    let e = exhaustive(&sys, &tri, &oracle, &opts).unwrap();
+    assert_door_in_door_out(&s, "sphere with vertices on it");
+    assert!(s.sorted_keys() == e.sorted_keys(), "trace and scan differ");
+    assert!(
+        s.stats.exact_decisions > 0,
+        "the exact tie-breaking path was not exercised"
+    );
+    assert_eq!(s.stats.components, 1);
+
+    // A circle of radius 5 on the integer lattice: twelve vertices (3,4), (5,0).. on it.
+    let sys = EquationSystem::parse_simple(2, &["x^2 + y^2 - 25"]).unwrap();
+    let tri = Triangulation::custom(vec![vec![1.0, 0.0], vec![0.0, 1.0]])
+        .build()
+        .unwrap();
+    let oracle = CpuOracle::new(&sys);
+    let opts = TraceOptions {
+        seeds: vec![vec![5.0, 0.0]],
+        ..TraceOptions::default()
+    };
+    let s = trace(&sys, &tri, &oracle, &opts).unwrap();
+    assert_door_in_door_out(&s, "circle through lattice vertices");
+    assert!(s.stats.exact_decisions > 0);
+}
+
+#[test]
+fn output_is_the_same_with_one_or_two_threads_and_across_runs() {
+    let p = problem("flat-torus", &[], 0.2);
+    let with_threads = |n: usize| {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(n)
+            .build()
+            .unwrap()
+            .install(|| run(&p, None, false))
+    };
+    let one = with_threads(1);
+    let two = with_threads(2);
+    let again = with_threads(2);
+    for other in [&two, &again] {
+        assert_eq!(one.len(), other.len());
+        for i in 0..one.len() {
+            assert_eq!(one.key(i), other.key(i), "simplex {i}");
+            let (a, b) = (one.point(i), other.point(i));
+            assert!(a.iter().zip(b).all(|(x, y)| x.to_bits() == y.to_bits()));
+        }
+    }
+}
+
+#[test]
+fn non_compact_graph_is_traced_inside_its_box() {
+    // z = cos(w): the box is its boundary.
+    let p = problem("complex-cosine", &[], 0.25);
+    let bbox = p.bbox.clone();
+    let s = run(&p, bbox.clone(), false);
+    assert!(s.len() > 100);
+    let b = bbox.clone().unwrap();
+    for (_, x) in s.iter() {
+        assert!(isomesh::trace::in_box(&b, x));
+    }
+    let e = run(&p, bbox, true);
+    assert_eq!(s.sorted_keys(), e.sorted_keys());
+}
+
+#[test]
+fn automatic_seeds_find_every_component() {
+    // Two disjoint unit circles: no seed, a box, one trace per component.
+    let sys =
+        EquationSystem::parse_simple(2, &["((x-2)^2 + y^2 - 1) * ((x+2)^2 + y^2 - 1)"]).unwrap();
+    let tri = Triangulation::coxeter(2)
+        .edge(0.1)
+        .rotation_seed(1)
+        .build()
+        .unwrap();
+    let oracle = CpuOracle::new(&sys);
+    let opts = TraceOptions {
+        bbox: Some(vec![[-3.5, 3.5], [-1.5, 1.5]]),
+        ..TraceOptions::default()
+    };
+    let s = trace(&sys, &tri, &oracle, &opts).unwrap();
+    assert_eq!(s.stats.components, 2);
+    let e = exhaustive(&sys, &tri, &oracle, &opts).unwrap();
+    assert_eq!(e.stats.components, 2);
+    assert_eq!(s.sorted_keys(), e.sorted_keys());
+}
+
+#[test]
+fn bad_requests_get_clear_errors() {
+    let p = problem("sphere", &[], 0.2);
+    let tri = p.triangulation.build(3).unwrap();
+    let oracle = CpuOracle::new(&p.system);
+    let go = |opts: TraceOptions| trace(&p.system, &tri, &oracle, &opts);
+
+    // A seed where Newton cannot reach M (the gradient vanishes at the centre).
+    let e = go(TraceOptions {
+        seeds: vec![vec![0.0, 0.0, 0.0]],
+        ..TraceOptions::default()
+    })
+    .unwrap_err();
+    assert!(
+        matches!(e, Error::Trace(ref m) if m.contains("off the manifold")),
+        "{e}"
+    );
+    // Wrong dimension, non-finite seed.
+    assert!(go(TraceOptions {
+        seeds: vec![vec![1.0, 0.0]],
+        ..TraceOptions::default()
+    })
+    .is_err());
+    assert!(go(TraceOptions {
+        seeds: vec![vec![f64::NAN, 0.0, 0.0]],
+        ..TraceOptions::default()
+    })
+    .is_err());
+    // No seed and no box.
+    let e = go(TraceOptions::default()).unwrap_err();
+    assert!(e.to_string().contains("no seed and no box"), "{e}");
+    // The exhaustive scan needs a box, and refuses grids beyond the memory limit.
+    let e = exhaustive(&p.system, &tri, &oracle, &TraceOptions::default()).unwrap_err();
+    assert!(e.to_string().contains("needs a box"), "{e}");
+    let e = exhaustive(
+        &p.system,
+        &tri,
+        &oracle,
+        &TraceOptions {
+            bbox: Some(cube(3, 30.0)),
+            max_memory: 1 << 28,
+            ..TraceOptions::default()
+        },
+    )
+    .unwrap_err();
+    assert!(e.to_string().contains("memory limit"), "{e}");
+    let e = exhaustive(
+        &p.system,
+        &tri,
+        &oracle,
+        &TraceOptions {
+            bbox: Some(cube(3, 1e4)),
+            ..TraceOptions::default()
+        },
+    )
+    .unwrap_err();
+    assert!(e.to_string().contains("2^32"), "{e}");
+}
+
+#[test]
+fn memory_limit_and_cancel_stop_cleanly_keeping_the_sample() {
+    let p = problem("torus", &[], 0.02);
+    let tri = p.triangulation.build(3).unwrap();
+    let oracle = CpuOracle::new(&p.system);
+    let s = trace(
+        &p.system,
+        &tri,
+        &oracle,
+        &TraceOptions {
+            seeds: p.seeds.clone(),
+            max_memory: 200_000,
+            ..TraceOptions::default()
+        },
+    )
+    .unwrap();
+    assert!(matches!(
+        s.stats.stopped,
+        Some(StopReason::MemoryLimit { .. })
+    ));
+    assert!(!s.is_empty());
+    assert!(s.stats.memory_bytes <= 200_000);
+
+    let cancel = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(true));
+    let s = trace(
+        &p.system,
+        &tri,
+        &oracle,
+        &TraceOptions {
+            seeds: p.seeds.clone(),
+            cancel: Some(cancel),
+            ..TraceOptions::default()
+        },
+    )
+    .unwrap();
+    assert_eq!(s.stats.stopped, Some(StopReason::Interrupted));
+}
+
+#[test]
+fn closures_trace_like_equations() {
+    let p = problem("torus", &[], 0.1);
+    let f = isomesh::expr::ClosureFunction::new(3, 1, |x, out| {
+        out[0] = (x[0].hypot(x[1]) - 1.0).powi(2) + x[2] * x[2] - 0.16;
+    })
+    .unwrap();
+    let tri = p.triangulation.build(3).unwrap();
+    let opts = TraceOptions {
+        seeds: p.seeds.clone(),
+        ..TraceOptions::default()
+    };
+    let a = trace(&f, &tri, &CpuOracle::new(&f), &opts).unwrap();
+    let b = trace(&p.system, &tri, &CpuOracle::new(&p.system), &opts).unwrap();
+    // Different rounding in f may flip a rare near-tie; the meshes agree almost everywhere.
+    let ka: HashSet<&[u64]> = a.sorted_keys().into_iter().collect();
+    let common = b.sorted_keys().iter().filter(|k| ka.contains(*k)).count();
+    assert!(common as f64 >= 0.999 * a.len().max(b.len()) as f64);
+    assert_door_in_door_out(&a, "closure torus");
+}
