@@ -257,31 +257,33 @@ impl<'a, const W: usize> Engine<'a, W> {
         });
     }
 
-    /// Crossing points of the crossed candidates (d per crossed one, in candidate order).
-    pub fn crossed_points(&self, cands: &[Key<W>], v: &Verdicts) -> Vec<(usize, Vec<f64>)> {
+    /// The crossed candidates (their indices) and their crossing points, d per crossed one,
+    /// in candidate order, in one flat array.
+    pub fn crossed_points(&self, cands: &[Key<W>], v: &Verdicts) -> (Vec<usize>, Vec<f64>) {
         let n = self.ctx.k + 1;
         let d = self.ctx.d;
-        (0..cands.len())
-            .into_par_iter()
+        let crossed: Vec<usize> = (0..cands.len())
             .filter(|&i| v.status[i].crossed())
-            .map(|i| {
-                let mut p = vec![0.0; d];
-                self.point(&cands[i], &v.lambda[i * n..(i + 1) * n], &mut p);
-                (i, p)
-            })
-            .collect()
+            .collect();
+        let mut points = vec![0.0; crossed.len() * d];
+        points
+            .par_chunks_mut(d)
+            .zip(&crossed)
+            .for_each(|(p, &i)| self.point(&cands[i], &v.lambda[i * n..(i + 1) * n], p));
+        (crossed, points)
     }
 
     /// Puts the crossed candidates that lie in the box into S (in candidate order) and the
     /// others into the current rejected set.
     fn accept(&mut self, cands: &[Key<W>], v: &Verdicts) -> Result<()> {
-        let crossed = self.crossed_points(cands, v);
+        let d = self.ctx.d;
+        let (crossed, points) = self.crossed_points(cands, v);
         let mut rejected = std::mem::take(&mut self.rejected[0]);
         rejected.clear();
-        let mut next = crossed.iter().peekable();
+        let mut next = crossed.iter().zip(points.chunks_exact(d)).peekable();
         for (i, key) in cands.iter().enumerate() {
             let hit = match next.peek() {
-                Some((j, p)) if *j == i => {
+                Some(&(&j, p)) if j == i => {
                     next.next();
                     self.ctx.bbox.is_none_or(|b| in_box(b, p)).then_some(p)
                 }

@@ -58,11 +58,12 @@ impl<const W: usize> Engine<'_, W> {
             faces.sort_unstable();
             faces.dedup();
             let verdicts = self.evaluate(&faces)?;
-            let mut hits: Vec<(f64, Key<W>, Vec<f64>)> = self
-                .crossed_points(&faces, &verdicts)
-                .into_iter()
+            let (crossed, points) = self.crossed_points(&faces, &verdicts);
+            let mut hits: Vec<(f64, Key<W>, &[f64])> = crossed
+                .iter()
+                .zip(points.chunks_exact(d))
                 .filter(|(_, p)| self.ctx.bbox.is_none_or(|b| in_box(b, p)))
-                .map(|(i, p)| {
+                .map(|(&i, p)| {
                     let dist = p.iter().zip(x).map(|(a, b)| (a - b) * (a - b)).sum();
                     (dist, faces[i], p)
                 })
@@ -76,7 +77,7 @@ impl<const W: usize> Engine<'_, W> {
                     }
                     let (i, new) = self.s.insert(&key)?;
                     if new {
-                        self.points.extend_from_slice(&p);
+                        self.points.extend_from_slice(p);
                         self.run(i as usize..i as usize + 1)?;
                         traced += 1;
                     }
