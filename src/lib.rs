@@ -26,6 +26,7 @@
 //! assert_eq!(s.facets().len(), 4);
 //! ```
 
+pub mod complex;
 pub mod cpu;
 pub mod error;
 pub mod export;

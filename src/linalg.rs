@@ -102,3 +102,84 @@ pub fn mat_mul(a: &[f64], b: &[f64], n: usize) -> Vec<f64> {
     }
     out
 }
+
+/// Eigen-decomposition of the symmetric n x n matrix `a` (row-major) by cyclic Jacobi
+/// rotations: the eigenvalues in decreasing order, and the matching unit eigenvectors as the
+/// rows of an n x n matrix.
+pub fn symmetric_eigen(a: &[f64], n: usize) -> (Vec<f64>, Vec<f64>) {
+    let mut a = a.to_vec();
+    let mut v = vec![0.0; n * n];
+    for i in 0..n {
+        v[i * n + i] = 1.0;
+    }
+    for _sweep in 0..64 {
+        let off: f64 = (0..n)
+            .flat_map(|i| (0..n).filter(move |&j| j != i).map(move |j| (i, j)))
+            .map(|(i, j)| a[i * n + j] * a[i * n + j])
+            .sum();
+        let scale: f64 = (0..n).map(|i| a[i * n + i] * a[i * n + i]).sum();
+        if off <= 1e-30 * scale.max(f64::MIN_POSITIVE) {
+            break;
+        }
+        for p in 0..n {
+            for q in p + 1..n {
+                let apq = a[p * n + q];
+                if apq == 0.0 {
+                    continue;
+                }
+                let theta = (a[q * n + q] - a[p * n + p]) / (2.0 * apq);
+                let t = theta.signum() / (theta.abs() + (theta * theta + 1.0).sqrt());
+                let t = if theta == 0.0 { 1.0 } else { t };
+                let c = 1.0 / (t * t + 1.0).sqrt();
+                let s = t * c;
+                for k in 0..n {
+                    let (akp, akq) = (a[k * n + p], a[k * n + q]);
+                    a[k * n + p] = c * akp - s * akq;
+                    a[k * n + q] = s * akp + c * akq;
+                }
+                for k in 0..n {
+                    let (apk, aqk) = (a[p * n + k], a[q * n + k]);
+                    a[p * n + k] = c * apk - s * aqk;
+                    a[q * n + k] = s * apk + c * aqk;
+                }
+                for k in 0..n {
+                    let (vkp, vkq) = (v[k * n + p], v[k * n + q]);
+                    v[k * n + p] = c * vkp - s * vkq;
+                    v[k * n + q] = s * vkp + c * vkq;
+                }
+            }
+        }
+    }
+    let mut order: Vec<usize> = (0..n).collect();
+    order.sort_by(|&i, &j| a[j * n + j].total_cmp(&a[i * n + i]));
+    let values = order.iter().map(|&i| a[i * n + i]).collect();
+    let mut vectors = vec![0.0; n * n];
+    for (r, &i) in order.iter().enumerate() {
+        for k in 0..n {
+            vectors[r * n + k] = v[k * n + i];
+        }
+    }
+    (values, vectors)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn eigen_of_a_symmetric_matrix() {
+        let a = [4.0, 1.0, 0.5, 1.0, 3.0, 0.2, 0.5, 0.2, 1.0];
+        let (vals, vecs) = symmetric_eigen(&a, 3);
+        assert!(vals[0] >= vals[1] && vals[1] >= vals[2]);
+        for r in 0..3 {
+            let v = &vecs[r * 3..r * 3 + 3];
+            let mut av = [0.0; 3];
+            mat_vec(&a, v, &mut av);
+            for k in 0..3 {
+                assert!((av[k] - vals[r] * v[k]).abs() < 1e-12, "{av:?} {v:?}");
+            }
+        }
+        let trace: f64 = vals.iter().sum();
+        assert!((trace - 8.0).abs() < 1e-12);
+    }
+}

@@ -19,7 +19,7 @@ static ALLOC: CountingAlloc = CountingAlloc;
     version,
     about = "Meshes implicit manifolds f^-1(0) of any dimension and codimension",
     after_help = "With no command, isomesh traces the built-in torus and writes \
-                  isomesh-out/torus.csv and isomesh-out/torus.json."
+                  isomesh-out/torus.csv, .ply, .png and .json."
 )]
 struct Cli {
     #[command(subcommand)]
@@ -71,7 +71,13 @@ fn main() -> ExitCode {
             );
             let args = TraceArgs {
                 preset: Some("torus".into()),
-                out: Some("isomesh-out/torus.csv".into()),
+                out: vec![
+                    "isomesh-out/torus.csv".into(),
+                    "isomesh-out/torus.ply".into(),
+                ],
+                png: Some("isomesh-out/torus.png".into()),
+                png_size: (1200, 900),
+                project: "auto".into(),
                 report: Some("isomesh-out/torus.json".into()),
                 ..TraceArgs::default()
             };

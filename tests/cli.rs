@@ -126,7 +126,99 @@ fn no_arguments_runs_the_default_example() {
     assert!(out.contains("isomesh-out/torus.csv"), "{out}");
     let r = report(&dir, "isomesh-out/torus.json");
     assert_eq!(r["components"], 1);
-    assert!(dir.join("isomesh-out/torus.csv").exists());
+    assert_eq!(r["euler_characteristic"], 0);
+    for f in ["torus.csv", "torus.ply", "torus.png"] {
+        assert!(dir.join("isomesh-out").join(f).exists(), "{f}");
+    }
+}
+
+#[test]
+fn the_report_carries_the_topology_and_meshes_are_written() {
+    let dir = scratch("topology");
+    let o = isomesh(
+        &dir,
+        &[
+            "trace",
+            "--preset",
+            "complex-cosine",
+            "--param",
+            "edge=0.2",
+            "--out",
+            "cc.vtu",
+            "--out",
+            "cc.npz",
+            "--out",
+            "cc.data",
+            "--format",
+            "obj",
+            "--png",
+            "cc.png",
+            "--png-size",
+            "300x200",
+            "--report",
+            "r.json",
+        ],
+    );
+    // --format applies to every --out, so the three files are all OBJ.
+    assert!(o.status.success(), "{}", stderr(&o));
+    let out = String::from_utf8_lossy(&o.stdout);
+    assert!(out.contains("manifold with boundary"), "{out}");
+    let r = report(&dir, "r.json");
+    let cells: Vec<u64> = r["cells"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|v| v.as_u64().unwrap())
+        .collect();
+    assert_eq!(cells.len(), 3);
+    assert_eq!(
+        r["euler_characteristic"].as_i64().unwrap(),
+        cells[0] as i64 - cells[1] as i64 + cells[2] as i64
+    );
+    assert_eq!(r["euler_characteristic"], 1);
+    assert_eq!(r["manifold"], true);
+    assert_eq!(r["closed"], false);
+    assert_eq!(r["orientable"], true);
+    assert_eq!(r["components"], 1);
+    assert_eq!(r["betti_mod2"], serde_json::json!([1, 0, 0]));
+    let b = r["boundary_cells"].as_array().unwrap();
+    assert_eq!(b.len(), 2);
+    assert!(b[0].as_u64().unwrap() > 0);
+    let obj = std::fs::read_to_string(dir.join("cc.data")).unwrap();
+    let faces = obj.lines().filter(|l| l.starts_with("f ")).count();
+    assert_eq!(faces as u64, cells[2]);
+    assert!(obj.starts_with("# isomesh: complex-cosine; d = 4, m = 2; projection: pca"));
+    assert!(dir.join("cc.png").exists());
+
+    // A closed 3-manifold: Betti numbers for m = 3, and no orientability entry.
+    let o = isomesh(
+        &dir,
+        &[
+            "trace",
+            "--preset",
+            "sphere",
+            "--param",
+            "m=3",
+            "--param",
+            "d=4",
+            "--param",
+            "edge=0.35",
+            "--out",
+            "s3.mesh",
+            "--report",
+            "s3.json",
+        ],
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let r = report(&dir, "s3.json");
+    assert_eq!(r["cells"].as_array().unwrap().len(), 4);
+    assert_eq!(r["euler_characteristic"], 0);
+    assert_eq!(r["closed"], true);
+    assert_eq!(r["orientable"], serde_json::Value::Null);
+    assert_eq!(r["betti_mod2"], serde_json::json!([1, 0, 0, 1]));
+    assert!(std::fs::read_to_string(dir.join("s3.mesh"))
+        .unwrap()
+        .contains("Tetrahedra"));
 }
 
 #[test]
@@ -163,6 +255,52 @@ fn bad_requests_fail_cleanly() {
         "unknown output format",
     );
     fails(&["trace", "missing.toml"], "missing.toml");
+    fails(
+        &["trace", "--preset", "circle", "--out", "c.off"],
+        "cannot hold a 1-manifold",
+    );
+    fails(
+        &[
+            "trace",
+            "--preset",
+            "circle",
+            "--out",
+            "c.ply",
+            "--no-complex",
+        ],
+        "--no-complex",
+    );
+    fails(
+        &[
+            "trace", "--preset", "circle", "--out", "c.ply", "--format", "doc",
+        ],
+        "--format doc",
+    );
+    fails(
+        &[
+            "trace",
+            "--preset",
+            "torus",
+            "--png",
+            "t.png",
+            "--png-size",
+            "10x10",
+        ],
+        "64 to 8192",
+    );
+    fails(
+        &[
+            "trace",
+            "--preset",
+            "flat-torus",
+            "--out",
+            "t.ply",
+            "--project",
+            "1,9",
+        ],
+        "projection",
+    );
+    assert!(!dir.join("c.off").exists() && !dir.join("c.off.partial").exists());
 }
 
 #[test]

@@ -9,7 +9,11 @@ use std::time::{Duration, Instant};
 
 use clap::{Args, ValueEnum};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
-use isomesh::export::{write_atomic, write_sample, SampleFormat};
+use isomesh::complex::{Complex, Topology};
+use isomesh::export::picture::Picture;
+use isomesh::export::{
+    write_atomic, write_mesh, write_sample, Mesh, MeshFormat, Projection, SampleFormat,
+};
 use isomesh::expr::{ImplicitFunction, Problem};
 use isomesh::memory;
 use isomesh::trace::{exhaustive, trace, CpuOracle, Progress, TraceOptions};
@@ -78,9 +82,27 @@ pub struct TraceArgs {
     /// Memory limit, bytes or with a K/M/G suffix (default: 3/4 of RAM).
     #[arg(long, value_parser = parse_bytes)]
     pub max_memory: Option<u64>,
-    /// Write the sample (points on M-hat): .csv, .xyz or .txt.
+    /// Write the result (repeatable): the sample as .csv, .xyz or .txt; the mesh as .ply,
+    /// .obj, .off, .stl (surfaces), .mesh (Medit), .vtu (ParaView) or .npz (NumPy).
     #[arg(long)]
-    pub out: Option<PathBuf>,
+    pub out: Vec<PathBuf>,
+    /// Output format for --out, overriding the file extension: csv, xyz, ply, obj, off, stl,
+    /// mesh, vtu or npz.
+    #[arg(long)]
+    pub format: Option<String>,
+    /// Draw the mesh into a PNG picture.
+    #[arg(long)]
+    pub png: Option<PathBuf>,
+    /// Size of the picture, WIDTHxHEIGHT.
+    #[arg(long, default_value = "1200x900", value_parser = parse_size)]
+    pub png_size: (usize, usize),
+    /// How R^d is seen in 3-D for files and pictures: auto (the coordinates up to d = 3,
+    /// else pca), pca, or coordinates such as 1,2,4.
+    #[arg(long, default_value = "auto")]
+    pub project: String,
+    /// Only the sample: no cell complex, no topology report, no mesh outputs.
+    #[arg(long)]
+    pub no_complex: bool,
     /// Write a JSON report.
     #[arg(long)]
     pub report: Option<PathBuf>,
@@ -125,6 +147,54 @@ pub fn parse_bytes(s: &str) -> std::result::Result<u64, String> {
         return Err(format!("'{s}' must be positive"));
     }
     Ok((v * mult as f64) as u64)
+}
+
+/// Parses WIDTHxHEIGHT.
+fn parse_size(s: &str) -> std::result::Result<(usize, usize), String> {
+    let (w, h) = s
+        .split_once(['x', 'X'])
+        .ok_or_else(|| format!("'{s}' is not WIDTHxHEIGHT (e.g. 1200x900)"))?;
+    let p = |t: &str| {
+        t.trim()
+            .parse::<usize>()
+            .map_err(|_| format!("'{s}' is not WIDTHxHEIGHT (e.g. 1200x900)"))
+    };
+    Ok((p(w)?, p(h)?))
+}
+
+/// What one --out path receives.
+enum Output {
+    Sample(SampleFormat),
+    Mesh(MeshFormat),
+}
+
+fn output_kind(path: &std::path::Path, format: Option<&str>) -> Result<Output> {
+    let sample = |name: &str| match name.to_ascii_lowercase().as_str() {
+        "csv" => Some(SampleFormat::Csv),
+        "xyz" | "txt" => Some(SampleFormat::Xyz),
+        _ => None,
+    };
+    let by_name = |name: &str| {
+        sample(name)
+            .map(Output::Sample)
+            .or_else(|| MeshFormat::from_name(name).map(Output::Mesh))
+    };
+    match format {
+        Some(f) => by_name(f).ok_or_else(|| {
+            Error::Spec(format!(
+                "--format {f}: use csv, xyz, ply, obj, off, stl, mesh, vtu or npz"
+            ))
+        }),
+        None => path
+            .extension()
+            .and_then(|e| by_name(&e.to_string_lossy()))
+            .ok_or_else(|| {
+                Error::Io(format!(
+                    "{}: unknown output format; use .csv, .xyz, .txt, .ply, .obj, .off, .stl,                      .mesh, .vtu or .npz, or --format",
+                    path.display()
+                ))
+            }),
+    }
 }
 
 /// The box from `--box` for dimension d.
@@ -263,10 +333,70 @@ fn run_in_pool(p: &Problem, args: &TraceArgs, threads: usize) -> Result<()> {
     let peak = memory::peak_bytes().saturating_sub(base);
     bar.finish_and_clear();
 
+    let outputs = args
+        .out
+        .iter()
+        .map(|p| output_kind(p, args.format.as_deref()))
+        .collect::<Result<Vec<_>>>()?;
+    let projection = Projection::parse(&args.project, d)?;
+    for (path, kind) in args.out.iter().zip(&outputs) {
+        if let Output::Mesh(format) = kind {
+            format.check_holds(d - k, path)?;
+        }
+    }
+    let wants_mesh = args.png.is_some() || outputs.iter().any(|o| matches!(o, Output::Mesh(_)));
+    if args.no_complex && wants_mesh {
+        return Err(Error::Spec(
+            "--no-complex: mesh files and pictures need the cell complex".into(),
+        ));
+    }
     let mut written = Vec::new();
-    if let Some(path) = &args.out {
-        write_sample(path, &sample, SampleFormat::from_path(path)?)?;
-        written.push(path.clone());
+    // The sample first: whatever happens next, it is on disk.
+    for (path, kind) in args.out.iter().zip(&outputs) {
+        if let Output::Sample(format) = kind {
+            write_sample(path, &sample, *format)?;
+            written.push(path.clone());
+        }
+    }
+    // A failure past this point still leaves the sample and the report on disk.
+    let mut failure: Option<Error> = None;
+    let complex = if args.no_complex || sample.is_empty() {
+        None
+    } else {
+        let limit = args.max_memory.unwrap_or_else(memory::default_limit);
+        match Complex::build_within(&sample, sys, p.bbox.as_deref(), limit) {
+            Ok(c) => {
+                let t0 = Instant::now();
+                let topo = c.topology();
+                let topo_s = t0.elapsed().as_secs_f64();
+                Some((c, topo, topo_s))
+            }
+            Err(e) => {
+                failure = Some(e);
+                None
+            }
+        }
+    };
+    if let (Some((c, topo, _)), true) = (&complex, wants_mesh) {
+        let mesh = Mesh::new(c, Some(sys), &projection, &p.name);
+        let mut write = || -> Result<()> {
+            for (path, kind) in args.out.iter().zip(&outputs) {
+                if let Output::Mesh(format) = kind {
+                    write_mesh(path, &mesh, *format)?;
+                    written.push(path.clone());
+                }
+            }
+            if let Some(path) = &args.png {
+                let (w, h) = args.png_size;
+                let pic = Picture::render(&mesh, w, h, &caption(&p.name, d, topo))?;
+                pic.write_png(path)?;
+                written.push(path.clone());
+            }
+            Ok(())
+        };
+        if let Err(e) = write() {
+            failure = Some(e);
+        }
     }
     let st = &sample.stats;
     let n = sample.len();
@@ -287,7 +417,7 @@ fn run_in_pool(p: &Problem, args: &TraceArgs, threads: usize) -> Result<()> {
             "offset": tri.offset(),
             "box": p.bbox,
             "simplex_count": n,
-            "components": st.components,
+            "components": complex.as_ref().map_or(st.components, |c| c.1.components),
             "backend": backend,
             "threads": threads,
             "elapsed_s": st.elapsed_s,
@@ -303,7 +433,31 @@ fn run_in_pool(p: &Problem, args: &TraceArgs, threads: usize) -> Result<()> {
             "seed_points": st.seed_points,
             "complete": st.stopped.is_none(),
             "stopped": st.stopped.as_ref().map(|s| s.to_string()),
+            "error": failure.as_ref().map(|e| e.to_string()),
         });
+        let mut report = report;
+        if let Some((c, t, topo_s)) = &complex {
+            let extra = json!({
+                "cells": t.cells,
+                "euler_characteristic": t.euler_characteristic,
+                "manifold": t.manifold,
+                "closed": t.closed,
+                "boundary_cells": t.boundary_cells,
+                "boundary_euler_characteristic": t.boundary_euler_characteristic,
+                "orientable": t.orientable,
+                "betti_mod2": t.betti_mod2,
+                "closed_components": t.closed_components,
+                "offender_count": t.offender_count,
+                "offenders": t.offenders,
+                "defects": t.defects,
+                "complex_s": c.stats.elapsed_s,
+                "topology_s": topo_s,
+                "projection": args.project,
+            });
+            if let (Some(r), Some(e)) = (report.as_object_mut(), extra.as_object()) {
+                r.extend(e.clone());
+            }
+        }
         write_atomic(path, |w| {
             serde_json::to_writer_pretty(&mut *w, &report).map_err(std::io::Error::other)?;
             writeln!(w)
@@ -326,9 +480,15 @@ fn run_in_pool(p: &Problem, args: &TraceArgs, threads: usize) -> Result<()> {
             peak as f64 / (1 << 20) as f64,
             if n > 0 { peak as f64 / n as f64 } else { 0.0 },
         );
+        if let Some((c, t, topo_s)) = &complex {
+            println!("{}", summary(t, c.stats.elapsed_s + topo_s));
+        }
         for f in &written {
             println!("wrote {}", f.display());
         }
+    }
+    if let (Some(e), None) = (failure, &st.stopped) {
+        return Err(e);
     }
     if let Some(stop) = &st.stopped {
         return Err(Error::Trace(format!(
@@ -341,6 +501,92 @@ fn run_in_pool(p: &Problem, args: &TraceArgs, threads: usize) -> Result<()> {
         )));
     }
     Ok(())
+}
+
+/// The caption of pictures.
+fn caption(name: &str, d: usize, t: &Topology) -> String {
+    format!(
+        "{name}: {}-manifold in R^{d}, cells {}, chi = {}{}",
+        t.dim,
+        t.cells
+            .iter()
+            .map(usize::to_string)
+            .collect::<Vec<_>>()
+            .join("/"),
+        t.euler_characteristic,
+        if t.closed { "" } else { ", with boundary" }
+    )
+}
+
+/// The readable topology summary.
+fn summary(t: &Topology, seconds: f64) -> String {
+    let names = ["vertices", "edges", "faces", "3-cells"];
+    let counts = |c: &[usize]| {
+        c.iter()
+            .enumerate()
+            .map(|(j, n)| match names.get(j) {
+                Some(name) => format!("{n} {name}"),
+                None => format!("{n} {j}-cells"),
+            })
+            .collect::<Vec<_>>()
+            .join(", ")
+    };
+    let mut s = format!(
+        "  complex: {}; Euler characteristic {} (built in {seconds:.3} s)",
+        counts(&t.cells),
+        t.euler_characteristic
+    );
+    let kind = match (t.manifold, t.closed) {
+        (true, true) => "closed manifold",
+        (true, false) => "manifold with boundary",
+        (false, true) => "NOT a manifold (no boundary)",
+        (false, false) => "NOT a manifold (with boundary)",
+    };
+    s += &format!(
+        "\n  topology: {kind}, {} component{}",
+        t.components,
+        if t.components == 1 { "" } else { "s" }
+    );
+    if let Some(o) = t.orientable {
+        s += if o {
+            ", orientable"
+        } else {
+            ", non-orientable"
+        };
+    }
+    if let Some(b) = &t.betti_mod2 {
+        let b: Vec<String> = b.iter().map(usize::to_string).collect();
+        s += &format!(", Betti numbers mod 2: {}", b.join(" "));
+    }
+    if !t.closed {
+        s += &format!(
+            "\n  boundary: {}; Euler characteristic {}",
+            counts(&t.boundary_cells),
+            t.boundary_euler_characteristic
+        );
+    }
+    if !t.manifold {
+        s += &format!(
+            "\n  offenders: {} ridge{} without the right number of cofaces, {} edge{} left out",
+            t.offender_count,
+            if t.offender_count == 1 { "" } else { "s" },
+            t.defects,
+            if t.defects == 1 { "" } else { "s" }
+        );
+        for o in t.offenders.iter().take(5) {
+            s += &format!(
+                "\n    cell {} ({}): {} cofaces",
+                o.cell,
+                if o.on_boundary {
+                    "boundary"
+                } else {
+                    "interior"
+                },
+                o.cofaces
+            );
+        }
+    }
+    s
 }
 
 fn progress_bar(quiet: bool) -> ProgressBar {

@@ -9,6 +9,13 @@ use std::path::Path;
 use crate::error::{Error, Result};
 use crate::trace::Sample;
 
+pub mod mesh;
+pub mod picture;
+pub mod projection;
+
+pub use mesh::{write_mesh, Mesh, MeshFormat};
+pub use projection::{Projection, View};
+
 /// Writes `path` through `body` into a temporary file beside it, then renames it into place.
 pub fn write_atomic(
     path: &Path,

@@ -39,6 +39,16 @@ pub trait ImplicitFunction: Send + Sync {
     fn system(&self) -> Option<&EquationSystem> {
         None
     }
+    /// Number of boundary inequalities g_i(x) >= 0 that cut M (default: those of `system()`).
+    fn boundary_count(&self) -> usize {
+        self.system().map_or(0, |s| s.boundary().len())
+    }
+    /// The boundary functions g_i at `x` into `out` (`boundary_count()` values).
+    fn eval_boundary(&self, x: &[f64], out: &mut [f64]) {
+        if let Some(s) = self.system() {
+            s.boundary_program().eval(x, out);
+        }
+    }
 }
 
 /// A system of equations in the language, compiled for batch evaluation.
@@ -254,6 +264,7 @@ pub struct ClosureFunction {
     d: usize,
     k: usize,
     f: Box<PointFn>,
+    boundary: Option<(usize, Box<PointFn>)>,
 }
 
 impl ClosureFunction {
@@ -269,7 +280,18 @@ impl ClosureFunction {
             d,
             k,
             f: Box::new(f),
+            boundary: None,
         })
+    }
+
+    /// Adds `count` boundary inequalities g_i(x) >= 0: `g` writes the g_i at one point.
+    pub fn with_boundary(
+        mut self,
+        count: usize,
+        g: impl Fn(&[f64], &mut [f64]) + Send + Sync + 'static,
+    ) -> Self {
+        self.boundary = Some((count, Box::new(g)));
+        self
     }
 }
 
@@ -286,6 +308,14 @@ impl ImplicitFunction for ClosureFunction {
             .zip(out.chunks_exact_mut(self.k))
         {
             (self.f)(p, o);
+        }
+    }
+    fn boundary_count(&self) -> usize {
+        self.boundary.as_ref().map_or(0, |b| b.0)
+    }
+    fn eval_boundary(&self, x: &[f64], out: &mut [f64]) {
+        if let Some((_, g)) = &self.boundary {
+            g(x, out);
         }
     }
 }

@@ -10,7 +10,6 @@ use foldhash::fast::FixedState;
 use hashbrown::HashSet;
 use rayon::prelude::*;
 
-use super::region::in_box;
 use super::table::{Key, Table};
 use super::{Progress, StopReason, TraceContext, TraceStats};
 use crate::cpu::decide::Status;
@@ -27,6 +26,10 @@ pub(crate) struct Engine<'a, const W: usize> {
     pub ctx: TraceContext<'a>,
     pub s: Table<W>,
     pub points: Vec<f64>,
+    /// Crossed simplices whose point lies outside the domain, next to S (the far ends of
+    /// the edges of M-hat that the domain's boundary cuts).
+    pub rim: Table<W>,
+    pub rim_points: Vec<f64>,
     verts: Table<W>,
     values: Vec<f64>,
     /// Rejected candidates of the previous and the current level (re-tests are only work).
@@ -47,6 +50,8 @@ impl<'a, const W: usize> Engine<'a, W> {
             ctx,
             s: Table::new(),
             points: Vec::new(),
+            rim: Table::new(),
+            rim_points: Vec::new(),
             verts: Table::new(),
             values: Vec::new(),
             rejected: [hs(), hs()],
@@ -59,6 +64,8 @@ impl<'a, const W: usize> Engine<'a, W> {
         let set = |h: &HashSet<Key<W>, FixedState>| h.allocation_size();
         self.s.bytes()
             + self.points.capacity() * 8
+            + self.rim.bytes()
+            + self.rim_points.capacity() * 8
             + self.verts.bytes()
             + self.values.capacity() * 8
             + set(&self.rejected[0])
@@ -107,6 +114,23 @@ impl<'a, const W: usize> Engine<'a, W> {
                     vertices: self.verts.len(),
                 });
             }
+        }
+        Ok(())
+    }
+
+    /// Finds the rim of a sample built elsewhere (the scan): the crossed neighbours of S
+    /// outside the domain.
+    pub fn complete_rim(&mut self) -> Result<()> {
+        let cands = self.neighbours(0..self.s.len())?;
+        let cands: Vec<Key<W>> = cands
+            .into_iter()
+            .filter(|c| self.rim.find(c).is_none())
+            .collect();
+        let verdicts = self.evaluate(&cands)?;
+        let (crossed, points) = self.crossed_points(&cands, &verdicts);
+        for (&i, p) in crossed.iter().zip(points.chunks_exact(self.ctx.d)) {
+            self.rim.insert(&cands[i])?;
+            self.rim_points.extend_from_slice(p);
         }
         Ok(())
     }
@@ -273,9 +297,9 @@ impl<'a, const W: usize> Engine<'a, W> {
         (crossed, points)
     }
 
-    /// Puts the crossed candidates that lie in the box into S (in candidate order) and the
-    /// others into the current rejected set.
-    fn accept(&mut self, cands: &[Key<W>], v: &Verdicts) -> Result<()> {
+    /// Puts the crossed candidates that lie in the domain into S (in candidate order), the
+    /// crossed ones outside it into the rim, and the others into the current rejected set.
+    pub fn accept(&mut self, cands: &[Key<W>], v: &Verdicts) -> Result<()> {
         let d = self.ctx.d;
         let (crossed, points) = self.crossed_points(cands, v);
         let mut rejected = std::mem::take(&mut self.rejected[0]);
@@ -285,14 +309,21 @@ impl<'a, const W: usize> Engine<'a, W> {
             let hit = match next.peek() {
                 Some(&(&j, p)) if j == i => {
                     next.next();
-                    self.ctx.bbox.is_none_or(|b| in_box(b, p)).then_some(p)
+                    Some(p)
                 }
                 _ => None,
             };
             match hit {
-                Some(p) => {
+                Some(p) if self.ctx.domain.contains(p) => {
                     self.s.insert(key)?;
                     self.points.extend_from_slice(p);
+                }
+                Some(p) => {
+                    if self.rim.find(key).is_none() {
+                        self.rim.insert(key)?;
+                        self.rim_points.extend_from_slice(p);
+                    }
+                    rejected.insert(*key);
                 }
                 None => {
                     rejected.insert(*key);

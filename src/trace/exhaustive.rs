@@ -296,7 +296,7 @@ pub(crate) fn scan<const W: usize>(
                         *p += lam[j] * xi;
                     }
                 }
-                if !in_box(bbox, &point) {
+                if !ctx.domain.contains(&point) {
                     return Ok(None);
                 }
                 grid.coords(row[0] as usize, &mut v[..d]);

@@ -32,7 +32,7 @@ use serde::Serialize;
 
 pub use exhaustive::MAX_SCAN_DIM;
 pub use oracle::{CpuOracle, Oracle};
-pub use region::{coord_bits, in_box, lattice_bounds};
+pub use region::{coord_bits, in_box, lattice_bounds, Domain};
 pub use seeds::SEED_TOLERANCE;
 
 use crate::error::{Error, Result};
@@ -40,7 +40,6 @@ use crate::expr::spec::check_box;
 use crate::expr::ImplicitFunction;
 use crate::triangulation::{KeyCodec, Simplex, Triangulation};
 use engine::Engine;
-use table::Table;
 
 /// Box samples for the automatic seed search when no seed is given.
 pub const DEFAULT_SEARCH_SAMPLES: usize = 512;
@@ -159,6 +158,8 @@ pub struct Sample {
     stride: usize,
     keys: Vec<u64>,
     points: Vec<f64>,
+    rim_keys: Vec<u64>,
+    rim_points: Vec<f64>,
     /// What it took.
     pub stats: TraceStats,
 }
@@ -205,6 +206,24 @@ impl Sample {
     pub fn iter(&self) -> impl Iterator<Item = (Simplex, &[f64])> + '_ {
         (0..self.len()).map(|i| (self.simplex(i), self.point(i)))
     }
+    /// Number of rim simplices: crossed k-simplices next to S whose points lie outside the
+    /// domain (box, boundary inequalities). The cell complex clips its cells with them.
+    pub fn rim_len(&self) -> usize {
+        self.rim_points.len() / self.ambient_dim()
+    }
+    /// Rim key `i`.
+    pub fn rim_key(&self, i: usize) -> &[u64] {
+        &self.rim_keys[i * self.stride..i * self.stride + self.codec.words()]
+    }
+    /// Rim point `i`.
+    pub fn rim_point(&self, i: usize) -> &[f64] {
+        let d = self.ambient_dim();
+        &self.rim_points[i * d..(i + 1) * d]
+    }
+    /// Words between consecutive keys in the key arrays (at least `codec().words()`).
+    pub fn stride(&self) -> usize {
+        self.stride
+    }
     /// The keys in sorted order (to compare samples as sets).
     pub fn sorted_keys(&self) -> Vec<&[u64]> {
         let mut v: Vec<&[u64]> = (0..self.len()).map(|i| self.key(i)).collect();
@@ -220,7 +239,7 @@ pub(crate) struct TraceContext<'a> {
     pub codec: KeyCodec,
     pub d: usize,
     pub k: usize,
-    pub bbox: Option<&'a [[f64; 2]]>,
+    pub domain: Domain<'a>,
     pub max_memory: u64,
     pub cancel: Option<&'a AtomicBool>,
     pub progress: Option<&'a (dyn Fn(&Progress) + Sync)>,
@@ -243,9 +262,10 @@ macro_rules! with_width {
         }
     };
 }
+pub(crate) use with_width;
 
 fn context<'a>(
-    f: &dyn ImplicitFunction,
+    f: &'a dyn ImplicitFunction,
     tri: &'a Triangulation,
     oracle: &'a dyn Oracle,
     opts: &'a TraceOptions,
@@ -273,24 +293,21 @@ fn context<'a>(
         codec,
         d,
         k,
-        bbox,
+        domain: Domain::new(f, bbox),
         max_memory: opts.max_memory,
         cancel: opts.cancel.as_deref(),
         progress: opts.progress,
     })
 }
 
-fn sample_from<const W: usize>(
-    codec: KeyCodec,
-    table: Table<W>,
-    points: Vec<f64>,
-    stats: TraceStats,
-) -> Sample {
+fn sample_from<const W: usize>(codec: KeyCodec, engine: Engine<W>, stats: TraceStats) -> Sample {
     Sample {
         codec,
         stride: W,
-        keys: table.into_words(),
-        points,
+        keys: engine.s.into_words(),
+        points: engine.points,
+        rim_keys: engine.rim.into_words(),
+        rim_points: engine.rim_points,
         stats,
     }
 }
@@ -319,13 +336,11 @@ pub fn trace(
     for (i, s) in opts.seeds.iter().enumerate() {
         let p = crate::expr::newton_project(f, s, SEED_TOLERANCE)
             .map_err(|e| Error::Trace(format!("seed {} {s:?} is off the manifold: {e}", i + 1)))?;
-        if let Some(b) = &opts.bbox {
-            if !in_box(b, &p) {
-                return Err(Error::Trace(format!(
-                    "seed {} {s:?} projects to {p:?}, outside the box",
-                    i + 1
-                )));
-            }
+        if !ctx.domain.contains(&p) {
+            return Err(Error::Trace(format!(
+                "seed {} {s:?} projects to {p:?}, outside the box or the boundary inequalities",
+                i + 1
+            )));
         }
         seeds.push(p);
     }
@@ -342,7 +357,7 @@ fn trace_with<const W: usize>(
 ) -> Result<Sample> {
     let start = Instant::now();
     let codec = ctx.codec;
-    let bbox = ctx.bbox.map(<[_]>::to_vec);
+    let bbox = ctx.domain.bbox.map(<[_]>::to_vec);
     let mut engine: Engine<W> = Engine::new(ctx);
     for s in seeds {
         if engine.stats.stopped.is_some() {
@@ -357,7 +372,7 @@ fn trace_with<const W: usize>(
     let mut stats = engine.stats.clone();
     stats.memory_bytes = engine.bytes() as u64;
     stats.elapsed_s = start.elapsed().as_secs_f64();
-    Ok(sample_from(codec, engine.s, engine.points, stats))
+    Ok(sample_from(codec, engine, stats))
 }
 
 /// Every crossed k-simplex of `tri` whose point lies in `opts.bbox` (required), with no seed.
@@ -380,10 +395,18 @@ pub fn exhaustive(
 
 fn exhaustive_with<const W: usize>(ctx: TraceContext) -> Result<Sample> {
     let start = Instant::now();
-    let bbox = ctx.bbox.expect("checked by exhaustive()");
-    let (table, points, mut stats) = exhaustive::scan::<W>(&ctx, bbox)?;
-    stats.components = exhaustive::count_components(&ctx.codec, &table)?;
-    stats.memory_bytes = (table.bytes() + points.capacity() * 8) as u64;
+    let bbox = ctx.domain.bbox.expect("checked by exhaustive()");
+    let codec = ctx.codec;
+    let (table, points, scan_stats) = exhaustive::scan::<W>(&ctx, bbox)?;
+    let components = exhaustive::count_components(&codec, &table)?;
+    let mut engine: Engine<W> = Engine::new(ctx);
+    engine.s = table;
+    engine.points = points;
+    engine.stats = scan_stats;
+    engine.complete_rim()?;
+    let mut stats = engine.stats.clone();
+    stats.components = components;
+    stats.memory_bytes = engine.bytes() as u64;
     stats.elapsed_s = start.elapsed().as_secs_f64();
-    Ok(sample_from(ctx.codec, table, points, stats))
+    Ok(sample_from(codec, engine, stats))
 }

@@ -1,5 +1,6 @@
 //! Boxes: where their lattice preimage lies, and how many key bits a coordinate needs.
 
+use crate::expr::ImplicitFunction;
 use crate::triangulation::Triangulation;
 
 /// Bits per lattice coordinate in keys when no box bounds the trace.
@@ -55,5 +56,92 @@ pub fn coord_bits(tri: &Triangulation, bbox: Option<&[[f64; 2]]>) -> u32 {
                 .unwrap_or(2);
             (u64::BITS - m.leading_zeros() + 1).clamp(4, 32)
         }
+    }
+}
+
+/// Where M-hat is kept: the box (if any) and the boundary inequalities g_i(x) >= 0 of f (if
+/// any). A crossing point outside it ends the trace there and becomes a boundary crossing.
+#[derive(Clone, Copy)]
+pub struct Domain<'a> {
+    /// The box.
+    pub bbox: Option<&'a [[f64; 2]]>,
+    f: &'a dyn ImplicitFunction,
+    constraints: usize,
+}
+
+impl<'a> Domain<'a> {
+    /// The domain of `f`'s boundary inequalities inside `bbox`.
+    pub fn new(f: &'a dyn ImplicitFunction, bbox: Option<&'a [[f64; 2]]>) -> Self {
+        let constraints = bbox.map_or(0, |b| 2 * b.len()) + f.boundary_count();
+        Domain {
+            bbox,
+            f,
+            constraints,
+        }
+    }
+
+    /// Whether nothing bounds it.
+    pub fn is_everything(&self) -> bool {
+        self.constraints == 0
+    }
+
+    /// The constraint values at `x` (box margins x_i - lo_i, hi_i - x_i, then the g_i):
+    /// `x` is inside when all are >= 0.
+    fn values(&self, x: &[f64], out: &mut Vec<f64>) {
+        out.clear();
+        if let Some(b) = self.bbox {
+            for ([lo, hi], v) in b.iter().zip(x) {
+                out.push(v - lo);
+                out.push(hi - v);
+            }
+        }
+        let start = out.len();
+        out.resize(self.constraints, 0.0);
+        if start < self.constraints {
+            self.f.eval_boundary(x, &mut out[start..]);
+        }
+    }
+
+    /// Whether `x` lies in the domain (a NaN constraint value counts as outside).
+    pub fn contains(&self, x: &[f64]) -> bool {
+        if let Some(b) = self.bbox {
+            if !in_box(b, x) {
+                return false;
+            }
+        }
+        if self.f.boundary_count() == 0 {
+            return true;
+        }
+        let mut g = [0.0f64; 16];
+        let n = self.f.boundary_count();
+        if n <= g.len() {
+            self.f.eval_boundary(x, &mut g[..n]);
+            g[..n].iter().all(|&v| v >= 0.0)
+        } else {
+            let mut g = vec![0.0; n];
+            self.f.eval_boundary(x, &mut g);
+            g.iter().all(|&v| v >= 0.0)
+        }
+    }
+
+    /// For `a` inside and `b` outside, the fraction t in [0, 1] of the way from a to b where
+    /// the segment leaves the domain: the first constraint to reach 0, each interpolated
+    /// linearly between its values at a and b.
+    pub fn exit(&self, a: &[f64], b: &[f64]) -> f64 {
+        let (mut va, mut vb) = (Vec::new(), Vec::new());
+        self.values(a, &mut va);
+        self.values(b, &mut vb);
+        va.iter()
+            .zip(&vb)
+            .filter(|(_, &y)| y < 0.0 || y.is_nan())
+            .map(|(&x, &y)| {
+                let t = x / (x - y);
+                if t.is_finite() {
+                    t.clamp(0.0, 1.0)
+                } else {
+                    0.0
+                }
+            })
+            .fold(1.0, f64::min)
     }
 }

@@ -7,7 +7,6 @@ use rand::{Rng, SeedableRng};
 use rayon::prelude::*;
 
 use super::engine::Engine;
-use super::region::in_box;
 use super::table::Key;
 use crate::error::{Error, Result};
 use crate::expr::{newton_project, ImplicitFunction};
@@ -62,7 +61,7 @@ impl<const W: usize> Engine<'_, W> {
             let mut hits: Vec<(f64, Key<W>, &[f64])> = crossed
                 .iter()
                 .zip(points.chunks_exact(d))
-                .filter(|(_, p)| self.ctx.bbox.is_none_or(|b| in_box(b, p)))
+                .filter(|(_, p)| self.ctx.domain.contains(p))
                 .map(|(&i, p)| {
                     let dist = p.iter().zip(x).map(|(a, b)| (a - b) * (a - b)).sum();
                     (dist, faces[i], p)
@@ -125,7 +124,7 @@ impl<const W: usize> Engine<'_, W> {
         let projected: Vec<Vec<f64>> = starts
             .par_iter()
             .filter_map(|x| newton_project(f, x, SEED_TOLERANCE).ok())
-            .filter(|p| in_box(bbox, p))
+            .filter(|p| self.ctx.domain.contains(p))
             .collect();
         self.stats.seed_points += projected.len() as u64;
         for p in projected {

@@ -1,0 +1,224 @@
+//! Surfaces and 2-cells: the vertices of each 2-cell in cyclic order (from its edges), a
+//! consistent orientation when one exists (in R^3, outward along the gradient of f), and
+//! triangles.
+
+use rayon::prelude::*;
+
+use super::Complex;
+use crate::expr::ImplicitFunction;
+
+/// The 2-cells of a complex as oriented polygons.
+#[derive(Clone, Debug)]
+pub struct Surface {
+    offsets: Vec<u32>,
+    vertices: Vec<u32>,
+    /// Whether the polygons are consistently oriented (only meaningful for m = 2: every
+    /// edge shared by two polygons is walked in opposite directions by them).
+    pub orientable: bool,
+    /// 2-cells whose edges do not form one cycle (left empty).
+    pub bad_cells: usize,
+}
+
+impl Surface {
+    /// Orders the 2-cells of `c` (m >= 2). For m = 2 it also orients them consistently when
+    /// possible, each component by BFS over shared edges; with `f` and d = 3, each component
+    /// then faces along the gradient of f.
+    pub fn new(c: &Complex, f: Option<&dyn ImplicitFunction>) -> Self {
+        let edges = c.level(1);
+        let faces = c.level(2);
+        let polys: Vec<Option<Vec<u32>>> = (0..faces.len())
+            .into_par_iter()
+            .with_min_len(1024)
+            .map(|i| cycle(faces.facets(i).iter().map(|&e| edges.facets(e as usize))))
+            .collect();
+        let bad_cells = polys.iter().filter(|p| p.is_none()).count();
+        let mut offsets = Vec::with_capacity(polys.len() + 1);
+        let mut vertices = Vec::new();
+        offsets.push(0);
+        for p in &polys {
+            vertices.extend(p.iter().flatten());
+            offsets.push(vertices.len() as u32);
+        }
+        let mut s = Surface {
+            offsets,
+            vertices,
+            orientable: bad_cells == 0,
+            bad_cells,
+        };
+        if c.dim() == 2 && s.orientable {
+            s.orient(c, f);
+        }
+        s
+    }
+
+    /// Number of polygons (2-cells).
+    pub fn len(&self) -> usize {
+        self.offsets.len() - 1
+    }
+    /// Whether there is no polygon.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+    /// Polygon `i`: vertex indices in cyclic order.
+    pub fn polygon(&self, i: usize) -> &[u32] {
+        &self.vertices[self.offsets[i] as usize..self.offsets[i + 1] as usize]
+    }
+    /// Fan triangles of every polygon, with the polygons' orientation.
+    pub fn triangles(&self) -> Vec<[u32; 3]> {
+        let mut t = Vec::with_capacity(self.vertices.len());
+        for i in 0..self.len() {
+            let p = self.polygon(i);
+            for w in 1..p.len().saturating_sub(1) {
+                t.push([p[0], p[w], p[w + 1]]);
+            }
+        }
+        t
+    }
+
+    /// Reverses polygons so that neighbours agree; clears `orientable` on a conflict.
+    fn orient(&mut self, c: &Complex, f: Option<&dyn ImplicitFunction>) {
+        let edges = c.level(1);
+        let faces = c.level(2);
+        const NONE: u32 = u32::MAX;
+        // The (up to two) polygons at each edge.
+        let mut at = vec![[NONE; 2]; edges.len()];
+        for p in 0..faces.len() {
+            for &e in faces.facets(p) {
+                let slot = &mut at[e as usize];
+                if slot[0] == NONE {
+                    slot[0] = p as u32;
+                } else if slot[1] == NONE {
+                    slot[1] = p as u32;
+                } else {
+                    self.orientable = false;
+                    return;
+                }
+            }
+        }
+        let mut flip = vec![None::<bool>; faces.len()];
+        let mut queue = std::collections::VecDeque::new();
+        for start in 0..faces.len() {
+            if flip[start].is_some() {
+                continue;
+            }
+            flip[start] = Some(false);
+            queue.push_back(start);
+            let mut component = vec![start];
+            while let Some(p) = queue.pop_front() {
+                let fp = flip[p] == Some(true);
+                for &e in faces.facets(p) {
+                    let [u, v] = at[e as usize];
+                    let q = if u as usize == p { v } else { u };
+                    if q == NONE {
+                        continue;
+                    }
+                    let q = q as usize;
+                    let ab = <[u32; 2]>::try_from(edges.facets(e as usize)).expect("2 ends");
+                    // Opposite walks of the shared edge, after flips.
+                    let want = fp == (self.walks(p, ab) != self.walks(q, ab));
+                    match flip[q] {
+                        None => {
+                            flip[q] = Some(want);
+                            queue.push_back(q);
+                            component.push(q);
+                        }
+                        Some(x) if x != want => self.orientable = false,
+                        _ => {}
+                    }
+                }
+            }
+            if let (Some(f), 3) = (f, c.ambient_dim()) {
+                if self.orientable && self.against_gradient(c, f, &component, &flip) {
+                    for &p in &component {
+                        flip[p] = flip[p].map(|x| !x);
+                    }
+                }
+            }
+        }
+        if !self.orientable {
+            return;
+        }
+        for (p, fl) in flip.iter().enumerate() {
+            if *fl == Some(true) {
+                let (a, b) = (self.offsets[p] as usize, self.offsets[p + 1] as usize);
+                self.vertices[a..b].reverse();
+            }
+        }
+    }
+
+    /// Whether polygon `p` walks from `ab[0]` to `ab[1]`.
+    fn walks(&self, p: usize, ab: [u32; 2]) -> bool {
+        let poly = self.polygon(p);
+        let i = poly
+            .iter()
+            .position(|&v| v == ab[0])
+            .expect("edge of the polygon");
+        poly[(i + 1) % poly.len()] == ab[1]
+    }
+
+    /// Whether the component, with its flips, faces against the gradient of f overall.
+    fn against_gradient(
+        &self,
+        c: &Complex,
+        f: &dyn ImplicitFunction,
+        component: &[usize],
+        flip: &[Option<bool>],
+    ) -> bool {
+        let score: f64 = component
+            .par_iter()
+            .map(|&p| {
+                let poly = self.polygon(p);
+                let x0 = c.point(poly[0] as usize);
+                let mut n = [0.0; 3];
+                let mut centre = [0.0; 3];
+                for w in 0..poly.len() {
+                    let x = c.point(poly[w] as usize);
+                    for i in 0..3 {
+                        centre[i] += x[i] / poly.len() as f64;
+                    }
+                    if w >= 1 && w + 1 < poly.len() {
+                        let (a, b) = (c.point(poly[w] as usize), c.point(poly[w + 1] as usize));
+                        let u = [a[0] - x0[0], a[1] - x0[1], a[2] - x0[2]];
+                        let v = [b[0] - x0[0], b[1] - x0[1], b[2] - x0[2]];
+                        n[0] += u[1] * v[2] - u[2] * v[1];
+                        n[1] += u[2] * v[0] - u[0] * v[2];
+                        n[2] += u[0] * v[1] - u[1] * v[0];
+                    }
+                }
+                let mut g = [0.0; 3];
+                f.jacobian(&centre, &mut g);
+                let s = n[0] * g[0] + n[1] * g[1] + n[2] * g[2];
+                if flip[p] == Some(true) {
+                    -s
+                } else {
+                    s
+                }
+            })
+            .sum();
+        score < 0.0
+    }
+}
+
+/// The vertices of a polygon in cyclic order from its edges (pairs of vertex indices), or
+/// `None` when the edges do not form one cycle.
+fn cycle<'a>(edges: impl Iterator<Item = &'a [u32]>) -> Option<Vec<u32>> {
+    let mut pairs: Vec<[u32; 2]> = edges
+        .map(|e| <[u32; 2]>::try_from(e).ok())
+        .collect::<Option<_>>()?;
+    if pairs.len() < 3 {
+        return None;
+    }
+    let first = pairs.swap_remove(0);
+    let mut order = vec![first[0], first[1]];
+    while !pairs.is_empty() {
+        let last = *order.last().expect("non-empty");
+        let i = pairs.iter().position(|e| e.contains(&last))?;
+        let e = pairs.swap_remove(i);
+        let next = if e[0] == last { e[1] } else { e[0] };
+        if pairs.is_empty() {
+            return (next == order[0]).then_some(order);
+        }
+        order.push(next);
+    }
+    None
+}

@@ -1,0 +1,543 @@
+//! Mesh files: PLY, OBJ, OFF and STL for curves and surfaces, Medit `.mesh`, VTK `.vtu` (for
+//! ParaView, with all d coordinates kept as point data) and NumPy `.npz` (the whole Hasse
+//! diagram). Ambient dimensions above 3 are projected to R^3 by a [`View`], recorded in the
+//! file.
+
+use std::io::{self, Write};
+use std::path::Path;
+
+use npyz::WriterBuilder;
+
+use super::projection::{Projection, View};
+use super::write_atomic;
+use crate::complex::{Complex, Surface};
+use crate::error::{Error, Result};
+use crate::expr::ImplicitFunction;
+
+/// Mesh file formats.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum MeshFormat {
+    /// Stanford PLY (ASCII): polygons, or edges for curves.
+    Ply,
+    /// Wavefront OBJ: polygons, or lines for curves.
+    Obj,
+    /// Geomview OFF: polygons.
+    Off,
+    /// Binary STL: triangles.
+    Stl,
+    /// Medit `.mesh` (as the C++ reference writes): edges, triangles or tetrahedra.
+    Medit,
+    /// VTK XML unstructured grid (`.vtu`): lines, polygons or tetrahedra, plus the d-D
+    /// coordinates and a boundary flag as point data.
+    Vtu,
+    /// NumPy `.npz`: vertices (N, d), every level of cells with its facets, and the
+    /// polygons, triangles or tetrahedra.
+    Npz,
+}
+
+impl MeshFormat {
+    /// Every format with its name (also its file extension).
+    pub const ALL: [(&'static str, MeshFormat); 7] = [
+        ("ply", MeshFormat::Ply),
+        ("obj", MeshFormat::Obj),
+        ("off", MeshFormat::Off),
+        ("stl", MeshFormat::Stl),
+        ("mesh", MeshFormat::Medit),
+        ("vtu", MeshFormat::Vtu),
+        ("npz", MeshFormat::Npz),
+    ];
+
+    /// The format called `name` (a file extension).
+    pub fn from_name(name: &str) -> Option<Self> {
+        let name = name.to_ascii_lowercase();
+        Self::ALL.iter().find(|(n, _)| *n == name).map(|x| x.1)
+    }
+
+    /// The format of `path`'s extension.
+    pub fn from_path(path: &Path) -> Option<Self> {
+        path.extension()
+            .and_then(|e| Self::from_name(&e.to_string_lossy()))
+    }
+}
+
+/// A complex ready to write: 3-D coordinates, and its cells as polygons, triangles and
+/// tetrahedra where those exist.
+pub struct Mesh<'a> {
+    /// The complex.
+    pub complex: &'a Complex,
+    /// How R^d is seen in R^3.
+    pub view: View,
+    /// Vertex coordinates in R^3, 3 per vertex.
+    pub xyz: Vec<f64>,
+    /// The 2-cells as polygons (m >= 2), oriented when m = 2.
+    pub surface: Option<Surface>,
+    /// m = 2: the polygons as fan triangles; m = 3: the boundary 2-cells as triangles.
+    pub triangles: Vec<[u32; 3]>,
+    /// m = 3: every 3-cell coned from its lowest vertex over its other faces' triangles.
+    pub tetrahedra: Vec<[u32; 4]>,
+    /// A line for file headers (what was meshed).
+    pub title: String,
+}
+
+impl<'a> Mesh<'a> {
+    /// Prepares `c`; `f` orients surfaces in R^3 along its gradient.
+    pub fn new(
+        c: &'a Complex,
+        f: Option<&dyn ImplicitFunction>,
+        projection: &Projection,
+        title: &str,
+    ) -> Self {
+        let view = View::new(projection, c.points(), c.ambient_dim());
+        let xyz = view.apply_all(c.points());
+        let m = c.dim();
+        let surface = (m >= 2).then(|| Surface::new(c, f));
+        let (mut triangles, mut tetrahedra) = (Vec::new(), Vec::new());
+        if let Some(s) = &surface {
+            let fan = |p: &[u32], out: &mut Vec<[u32; 3]>| {
+                for w in 1..p.len().saturating_sub(1) {
+                    out.push([p[0], p[w], p[w + 1]]);
+                }
+            };
+            if m == 2 {
+                triangles = s.triangles();
+            } else if m == 3 {
+                let faces = c.level(2);
+                for i in faces.interior()..faces.len() {
+                    fan(s.polygon(i), &mut triangles);
+                }
+                let cells = c.level(3);
+                let mut tri = Vec::new();
+                for i in 0..cells.len() {
+                    let facets = cells.facets(i);
+                    let apex = facets
+                        .iter()
+                        .flat_map(|&p| s.polygon(p as usize).iter().copied())
+                        .min();
+                    let Some(apex) = apex else { continue };
+                    for &p in facets {
+                        let poly = s.polygon(p as usize);
+                        if !poly.contains(&apex) {
+                            tri.clear();
+                            fan(poly, &mut tri);
+                            tetrahedra.extend(tri.iter().map(|t| [apex, t[0], t[1], t[2]]));
+                        }
+                    }
+                }
+            }
+        }
+        Mesh {
+            complex: c,
+            view,
+            xyz,
+            surface,
+            triangles,
+            tetrahedra,
+            title: title.to_string(),
+        }
+    }
+
+    fn vertex_count(&self) -> usize {
+        self.complex.vertex_count()
+    }
+
+    fn p3(&self, i: usize) -> &[f64] {
+        &self.xyz[3 * i..3 * i + 3]
+    }
+
+    fn polygons(&self) -> impl Iterator<Item = &[u32]> {
+        let s = self.surface.as_ref();
+        (0..s.map_or(0, Surface::len)).map(move |i| s.expect("surface").polygon(i))
+    }
+
+    fn edges(&self) -> impl Iterator<Item = &[u32]> {
+        let e = self.complex.level(1);
+        (0..e.len()).map(move |i| e.facets(i))
+    }
+
+    fn header(&self) -> String {
+        format!(
+            "isomesh: {}; d = {}, m = {}; projection: {}",
+            self.title,
+            self.complex.ambient_dim(),
+            self.complex.dim(),
+            self.view.description
+        )
+    }
+}
+
+impl MeshFormat {
+    /// Whether files of this format can hold an m-manifold.
+    pub fn holds(self, m: usize) -> bool {
+        match self {
+            MeshFormat::Ply | MeshFormat::Obj => m <= 2,
+            MeshFormat::Off | MeshFormat::Stl => m == 2,
+            MeshFormat::Medit | MeshFormat::Vtu => m <= 3,
+            MeshFormat::Npz => true,
+        }
+    }
+
+    /// [`MeshFormat::holds`] as a clear error naming `path` and the formats that fit.
+    pub fn check_holds(self, m: usize, path: &Path) -> Result<()> {
+        if self.holds(m) {
+            return Ok(());
+        }
+        Err(Error::Io(format!(
+            "{}: {self:?} cannot hold a {m}-manifold; use {}",
+            path.display(),
+            match m {
+                1 => ".ply, .obj, .mesh, .vtu or .npz",
+                3 => ".mesh, .vtu or .npz",
+                _ => ".npz",
+            }
+        )))
+    }
+}
+
+/// Writes `mesh` to `path` in `format` (through a temporary file).
+pub fn write_mesh(path: &Path, mesh: &Mesh, format: MeshFormat) -> Result<()> {
+    format.check_holds(mesh.complex.dim(), path)?;
+    write_atomic(path, |w| match format {
+        MeshFormat::Ply => ply(w, mesh),
+        MeshFormat::Obj => obj(w, mesh),
+        MeshFormat::Off => off(w, mesh),
+        MeshFormat::Stl => stl(w, mesh),
+        MeshFormat::Medit => medit(w, mesh),
+        MeshFormat::Vtu => vtu(w, mesh),
+        MeshFormat::Npz => npz(w, mesh),
+    })
+}
+
+fn ply(w: &mut impl Write, mesh: &Mesh) -> io::Result<()> {
+    let curve = mesh.complex.dim() == 1;
+    writeln!(w, "ply\nformat ascii 1.0\ncomment {}", mesh.header())?;
+    writeln!(w, "element vertex {}", mesh.vertex_count())?;
+    writeln!(w, "property double x\nproperty double y\nproperty double z")?;
+    if curve {
+        writeln!(w, "element edge {}", mesh.complex.level(1).len())?;
+        writeln!(w, "property int vertex1\nproperty int vertex2")?;
+    } else {
+        writeln!(
+            w,
+            "element face {}",
+            mesh.surface.as_ref().map_or(0, Surface::len)
+        )?;
+        writeln!(w, "property list uchar int vertex_indices")?;
+    }
+    writeln!(w, "end_header")?;
+    for i in 0..mesh.vertex_count() {
+        let p = mesh.p3(i);
+        writeln!(w, "{:?} {:?} {:?}", p[0], p[1], p[2])?;
+    }
+    if curve {
+        for e in mesh.edges() {
+            writeln!(w, "{} {}", e[0], e[1])?;
+        }
+    } else {
+        for p in mesh.polygons() {
+            write!(w, "{}", p.len())?;
+            for v in p {
+                write!(w, " {v}")?;
+            }
+            writeln!(w)?;
+        }
+    }
+    Ok(())
+}
+
+fn obj(w: &mut impl Write, mesh: &Mesh) -> io::Result<()> {
+    writeln!(w, "# {}", mesh.header())?;
+    for i in 0..mesh.vertex_count() {
+        let p = mesh.p3(i);
+        writeln!(w, "v {:?} {:?} {:?}", p[0], p[1], p[2])?;
+    }
+    if mesh.complex.dim() == 1 {
+        for e in mesh.edges() {
+            writeln!(w, "l {} {}", e[0] + 1, e[1] + 1)?;
+        }
+    } else {
+        for p in mesh.polygons() {
+            write!(w, "f")?;
+            for v in p {
+                write!(w, " {}", v + 1)?;
+            }
+            writeln!(w)?;
+        }
+    }
+    Ok(())
+}
+
+fn off(w: &mut impl Write, mesh: &Mesh) -> io::Result<()> {
+    let faces = mesh.surface.as_ref().map_or(0, Surface::len);
+    writeln!(w, "OFF\n# {}", mesh.header())?;
+    writeln!(
+        w,
+        "{} {} {}",
+        mesh.vertex_count(),
+        faces,
+        mesh.complex.level(1).len()
+    )?;
+    for i in 0..mesh.vertex_count() {
+        let p = mesh.p3(i);
+        writeln!(w, "{:?} {:?} {:?}", p[0], p[1], p[2])?;
+    }
+    for p in mesh.polygons() {
+        write!(w, "{}", p.len())?;
+        for v in p {
+            write!(w, " {v}")?;
+        }
+        writeln!(w)?;
+    }
+    Ok(())
+}
+
+fn stl(w: &mut impl Write, mesh: &Mesh) -> io::Result<()> {
+    let mut head = [b' '; 80];
+    let text = mesh.header();
+    let text = text.as_bytes();
+    let n = text.len().min(80);
+    head[..n].copy_from_slice(&text[..n]);
+    w.write_all(&head)?;
+    w.write_all(&(mesh.triangles.len() as u32).to_le_bytes())?;
+    for t in &mesh.triangles {
+        let [a, b, c] = t.map(|v| mesh.p3(v as usize));
+        let u = [b[0] - a[0], b[1] - a[1], b[2] - a[2]];
+        let v = [c[0] - a[0], c[1] - a[1], c[2] - a[2]];
+        let mut nrm = [
+            u[1] * v[2] - u[2] * v[1],
+            u[2] * v[0] - u[0] * v[2],
+            u[0] * v[1] - u[1] * v[0],
+        ];
+        let len = (nrm[0] * nrm[0] + nrm[1] * nrm[1] + nrm[2] * nrm[2]).sqrt();
+        if len > 0.0 {
+            nrm.iter_mut().for_each(|x| *x /= len);
+        }
+        for x in nrm.iter().chain(a).chain(b).chain(c) {
+            w.write_all(&(*x as f32).to_le_bytes())?;
+        }
+        w.write_all(&[0, 0])?;
+    }
+    Ok(())
+}
+
+fn medit(w: &mut impl Write, mesh: &Mesh) -> io::Result<()> {
+    let c = mesh.complex;
+    let interior = c.interior_vertex_count();
+    writeln!(
+        w,
+        "MeshVersionFormatted 1\n# {}\nDimension 3",
+        mesh.header()
+    )?;
+    writeln!(w, "Vertices\n{}", mesh.vertex_count())?;
+    for i in 0..mesh.vertex_count() {
+        let p = mesh.p3(i);
+        let r = if i < interior { 0 } else { 1 };
+        writeln!(w, "{:?} {:?} {:?} {r}", p[0], p[1], p[2])?;
+    }
+    match c.dim() {
+        1 => {
+            writeln!(w, "Edges\n{}", c.level(1).len())?;
+            for e in mesh.edges() {
+                writeln!(w, "{} {} 0", e[0] + 1, e[1] + 1)?;
+            }
+        }
+        _ => {
+            if !mesh.triangles.is_empty() || c.dim() == 2 {
+                writeln!(w, "Triangles\n{}", mesh.triangles.len())?;
+                for t in &mesh.triangles {
+                    writeln!(w, "{} {} {} 0", t[0] + 1, t[1] + 1, t[2] + 1)?;
+                }
+            }
+            if c.dim() == 3 {
+                writeln!(w, "Tetrahedra\n{}", mesh.tetrahedra.len())?;
+                for t in &mesh.tetrahedra {
+                    writeln!(w, "{} {} {} {} 0", t[0] + 1, t[1] + 1, t[2] + 1, t[3] + 1)?;
+                }
+            }
+        }
+    }
+    writeln!(w, "End")
+}
+
+fn vtu(w: &mut impl Write, mesh: &Mesh) -> io::Result<()> {
+    let c = mesh.complex;
+    let d = c.ambient_dim();
+    let n = mesh.vertex_count();
+    // (VTK cell type, vertex lists)
+    let (kind, cells): (u8, Vec<&[u32]>) = match c.dim() {
+        1 => (3, mesh.edges().collect()),
+        2 => (7, mesh.polygons().collect()),
+        _ => (10, mesh.tetrahedra.iter().map(|t| &t[..]).collect()),
+    };
+    writeln!(w, "<?xml version=\"1.0\"?>\n<!-- {} -->", mesh.header())?;
+    writeln!(
+        w,
+        "<VTKFile type=\"UnstructuredGrid\" version=\"1.0\" byte_order=\"LittleEndian\" \
+         header_type=\"UInt64\">\n<UnstructuredGrid>"
+    )?;
+    writeln!(
+        w,
+        "<Piece NumberOfPoints=\"{n}\" NumberOfCells=\"{}\">",
+        cells.len()
+    )?;
+    writeln!(
+        w,
+        "<PointData>\n<DataArray type=\"Float64\" Name=\"coordinates\" \
+         NumberOfComponents=\"{d}\" format=\"ascii\">"
+    )?;
+    for x in c.points().chunks_exact(d) {
+        let row: Vec<String> = x.iter().map(|v| format!("{v:?}")).collect();
+        writeln!(w, "{}", row.join(" "))?;
+    }
+    writeln!(
+        w,
+        "</DataArray>\n<DataArray type=\"UInt8\" Name=\"boundary\" format=\"ascii\">"
+    )?;
+    for i in 0..n {
+        write!(w, "{} ", u8::from(i >= c.interior_vertex_count()))?;
+    }
+    writeln!(w, "\n</DataArray>\n</PointData>")?;
+    writeln!(
+        w,
+        "<Points>\n<DataArray type=\"Float64\" NumberOfComponents=\"3\" format=\"ascii\">"
+    )?;
+    for i in 0..n {
+        let p = mesh.p3(i);
+        writeln!(w, "{:?} {:?} {:?}", p[0], p[1], p[2])?;
+    }
+    writeln!(w, "</DataArray>\n</Points>\n<Cells>")?;
+    writeln!(
+        w,
+        "<DataArray type=\"Int64\" Name=\"connectivity\" format=\"ascii\">"
+    )?;
+    for cell in &cells {
+        let row: Vec<String> = cell.iter().map(u32::to_string).collect();
+        writeln!(w, "{}", row.join(" "))?;
+    }
+    writeln!(
+        w,
+        "</DataArray>\n<DataArray type=\"Int64\" Name=\"offsets\" format=\"ascii\">"
+    )?;
+    let mut end = 0;
+    for cell in &cells {
+        end += cell.len();
+        write!(w, "{end} ")?;
+    }
+    writeln!(
+        w,
+        "\n</DataArray>\n<DataArray type=\"UInt8\" Name=\"types\" format=\"ascii\">"
+    )?;
+    for _ in &cells {
+        write!(w, "{kind} ")?;
+    }
+    writeln!(
+        w,
+        "\n</DataArray>\n</Cells>\n</Piece>\n</UnstructuredGrid>\n</VTKFile>"
+    )
+}
+
+/// One `.npy` array in memory.
+fn npy<T: npyz::AutoSerialize>(
+    shape: &[u64],
+    data: impl IntoIterator<Item = T>,
+) -> io::Result<Vec<u8>> {
+    let mut buf = Vec::new();
+    let mut writer = npyz::WriteOptions::new()
+        .default_dtype()
+        .shape(shape)
+        .writer(&mut buf)
+        .begin_nd()?;
+    writer.extend(data)?;
+    writer.finish()?;
+    Ok(buf)
+}
+
+fn npz<W: Write + io::Seek>(w: &mut W, mesh: &Mesh) -> io::Result<()> {
+    let c = mesh.complex;
+    let (n, d) = (mesh.vertex_count() as u64, c.ambient_dim() as u64);
+    let mut arrays: Vec<(String, Vec<u8>)> = vec![
+        ("vertices".into(), npy(&[n, d], c.points().iter().copied())?),
+        (
+            "vertices_3d".into(),
+            npy(&[n, 3], mesh.xyz.iter().copied())?,
+        ),
+        (
+            "boundary_vertex".into(),
+            npy(
+                &[n],
+                (0..n as usize).map(|i| u8::from(i >= c.interior_vertex_count())),
+            )?,
+        ),
+        (
+            "projection_matrix".into(),
+            npy(&[3, d], mesh.view.matrix.iter().copied())?,
+        ),
+        (
+            "projection_centre".into(),
+            npy(&[d], mesh.view.centre.iter().copied())?,
+        ),
+    ];
+    for j in 1..=c.dim() {
+        let level = c.level(j);
+        let facets: Vec<u32> = (0..level.len())
+            .flat_map(|i| level.facets(i).iter().copied())
+            .collect();
+        let mut offsets = vec![0u64];
+        for i in 0..level.len() {
+            offsets.push(offsets[i] + level.facets(i).len() as u64);
+        }
+        arrays.push((
+            format!("cells{j}_facets"),
+            npy(&[facets.len() as u64], facets)?,
+        ));
+        arrays.push((
+            format!("cells{j}_offsets"),
+            npy(&[offsets.len() as u64], offsets)?,
+        ));
+        arrays.push((
+            format!("cells{j}_boundary"),
+            npy(
+                &[level.len() as u64],
+                (0..level.len()).map(|i| u8::from(level.on_boundary(i))),
+            )?,
+        ));
+    }
+    if c.dim() == 1 {
+        let e: Vec<u32> = mesh.edges().flatten().copied().collect();
+        arrays.push(("edges".into(), npy(&[e.len() as u64 / 2, 2], e)?));
+    }
+    if let Some(s) = &mesh.surface {
+        let mut offsets = vec![0u64];
+        let mut verts = Vec::new();
+        for i in 0..s.len() {
+            verts.extend_from_slice(s.polygon(i));
+            offsets.push(verts.len() as u64);
+        }
+        arrays.push((
+            "polygon_offsets".into(),
+            npy(&[offsets.len() as u64], offsets)?,
+        ));
+        arrays.push((
+            "polygon_vertices".into(),
+            npy(&[verts.len() as u64], verts)?,
+        ));
+    }
+    if !mesh.triangles.is_empty() {
+        let t: Vec<u32> = mesh.triangles.iter().flatten().copied().collect();
+        arrays.push(("triangles".into(), npy(&[t.len() as u64 / 3, 3], t)?));
+    }
+    if !mesh.tetrahedra.is_empty() {
+        let t: Vec<u32> = mesh.tetrahedra.iter().flatten().copied().collect();
+        arrays.push(("tetrahedra".into(), npy(&[t.len() as u64 / 4, 4], t)?));
+    }
+    let mut zip = zip::ZipWriter::new(w);
+    for (name, bytes) in arrays {
+        let options = zip::write::SimpleFileOptions::default()
+            .compression_method(zip::CompressionMethod::Stored)
+            .large_file(bytes.len() as u64 >= u32::MAX as u64);
+        zip.start_file(format!("{name}.npy"), options)
+            .map_err(io::Error::other)?;
+        zip.write_all(&bytes)?;
+    }
+    zip.finish().map_err(io::Error::other)?;
+    Ok(())
+}

@@ -1,0 +1,377 @@
+//! Exports read back with small independent readers (NumPy files parsed by hand) and the
+//! PNG decoded, with the complex's own counts to compare against.
+
+use std::io::Read;
+use std::path::{Path, PathBuf};
+
+use isomesh::complex::Complex;
+use isomesh::export::picture::Picture;
+use isomesh::export::{write_mesh, Mesh, MeshFormat, Projection};
+use isomesh::expr::{preset, Problem};
+use isomesh::trace::{trace, CpuOracle, TraceOptions};
+
+fn problem(name: &str, params: &[(&str, f64)]) -> Problem {
+    let params: Vec<(String, f64)> = params.iter().map(|(n, v)| (n.to_string(), *v)).collect();
+    preset(name, &params).unwrap()
+}
+
+fn build(p: &Problem) -> Complex {
+    let tri = p.triangulation.build(p.dim()).unwrap();
+    let opts = TraceOptions {
+        seeds: p.seeds.clone(),
+        bbox: p.bbox.clone(),
+        ..TraceOptions::default()
+    };
+    let s = trace(&p.system, &tri, &CpuOracle::new(&p.system), &opts).unwrap();
+    Complex::build(&s, &p.system, p.bbox.as_deref()).unwrap()
+}
+
+fn dir(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("isomesh-export-{}-{name}", std::process::id()));
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+fn text(path: &Path) -> String {
+    std::fs::read_to_string(path).unwrap()
+}
+
+fn floats(s: &str) -> Vec<f64> {
+    s.split_whitespace().map(|t| t.parse().unwrap()).collect()
+}
+
+/// (vertices, cells as vertex lists) of an ASCII PLY file.
+fn read_ply(s: &str) -> (usize, Vec<Vec<usize>>, String) {
+    let (head, body) = s.split_once("end_header\n").unwrap();
+    let count = |el: &str| -> usize {
+        head.lines()
+            .find_map(|l| l.strip_prefix(&format!("element {el} ")))
+            .map_or(0, |n| n.parse().unwrap())
+    };
+    let (nv, nf, ne) = (count("vertex"), count("face"), count("edge"));
+    let lines: Vec<&str> = body.lines().collect();
+    assert_eq!(lines.len(), nv + nf + ne);
+    for l in &lines[..nv] {
+        assert_eq!(floats(l).len(), 3);
+    }
+    let cells = lines[nv..]
+        .iter()
+        .map(|l| {
+            let v: Vec<usize> = l.split_whitespace().map(|t| t.parse().unwrap()).collect();
+            if nf > 0 {
+                assert_eq!(v[0], v.len() - 1);
+                v[1..].to_vec()
+            } else {
+                v
+            }
+        })
+        .collect();
+    (nv, cells, head.to_string())
+}
+
+fn read_obj(s: &str) -> (usize, Vec<Vec<usize>>) {
+    let mut nv = 0;
+    let mut cells = Vec::new();
+    for l in s.lines() {
+        let mut t = l.split_whitespace();
+        match t.next() {
+            Some("v") => {
+                let xyz: Vec<f64> = t.map(|x| x.parse().unwrap()).collect();
+                assert_eq!(xyz.len(), 3);
+                nv += 1;
+            }
+            Some("f") | Some("l") => {
+                cells.push(t.map(|x| x.parse::<usize>().unwrap() - 1).collect());
+            }
+            _ => {}
+        }
+    }
+    (nv, cells)
+}
+
+fn read_off(s: &str) -> (usize, Vec<Vec<usize>>) {
+    let mut lines = s.lines().filter(|l| !l.starts_with('#'));
+    assert_eq!(lines.next(), Some("OFF"));
+    let counts: Vec<usize> = lines
+        .next()
+        .unwrap()
+        .split_whitespace()
+        .map(|t| t.parse().unwrap())
+        .collect();
+    let (nv, nf) = (counts[0], counts[1]);
+    let rest: Vec<&str> = lines.collect();
+    assert_eq!(rest.len(), nv + nf);
+    let cells = rest[nv..]
+        .iter()
+        .map(|l| {
+            let v: Vec<usize> = l.split_whitespace().map(|t| t.parse().unwrap()).collect();
+            assert_eq!(v[0], v.len() - 1);
+            v[1..].to_vec()
+        })
+        .collect();
+    (nv, cells)
+}
+
+/// Section sizes of a Medit file, by keyword, with the rows checked for width.
+fn read_medit(s: &str) -> std::collections::HashMap<String, usize> {
+    let lines: Vec<&str> = s.lines().filter(|l| !l.starts_with('#')).collect();
+    let mut out = std::collections::HashMap::new();
+    let mut i = 0;
+    while i < lines.len() {
+        let key = lines[i].trim();
+        let width = match key {
+            "Vertices" => 4,
+            "Edges" => 3,
+            "Triangles" => 4,
+            "Tetrahedra" => 5,
+            _ => {
+                i += 1;
+                continue;
+            }
+        };
+        let n: usize = lines[i + 1].trim().parse().unwrap();
+        for row in &lines[i + 2..i + 2 + n] {
+            assert_eq!(row.split_whitespace().count(), width, "{key}: {row}");
+        }
+        out.insert(key.to_string(), n);
+        i += 2 + n;
+    }
+    out
+}
+
+/// The text of a VTU DataArray named `name`.
+fn vtu_array<'a>(s: &'a str, name: &str) -> &'a str {
+    let at = s.find(&format!("Name=\"{name}\"")).unwrap();
+    let start = at + s[at..].find('>').unwrap() + 1;
+    let end = start + s[start..].find("</DataArray>").unwrap();
+    &s[start..end]
+}
+
+fn attr(s: &str, name: &str) -> usize {
+    let at = s.find(&format!("{name}=\"")).unwrap() + name.len() + 2;
+    s[at..at + s[at..].find('"').unwrap()].parse().unwrap()
+}
+
+fn npz_entries(path: &Path) -> std::collections::HashMap<String, Vec<u8>> {
+    let mut z = zip::ZipArchive::new(std::fs::File::open(path).unwrap()).unwrap();
+    (0..z.len())
+        .map(|i| {
+            let mut f = z.by_index(i).unwrap();
+            let mut bytes = Vec::new();
+            f.read_to_end(&mut bytes).unwrap();
+            (f.name().trim_end_matches(".npy").to_string(), bytes)
+        })
+        .collect()
+}
+
+/// Parses a `.npy` file by hand (version 1 header, little-endian, C order): its shape and
+/// its data, after checking the dtype.
+fn read_npy<T: FromLe>(bytes: &[u8], dtype: &str) -> (Vec<usize>, Vec<T>) {
+    assert_eq!(&bytes[..6], b"\x93NUMPY");
+    let len = u16::from_le_bytes([bytes[8], bytes[9]]) as usize;
+    let header = std::str::from_utf8(&bytes[10..10 + len]).unwrap();
+    assert!(header.contains(&format!("'descr': '{dtype}'")), "{header}");
+    assert!(header.contains("'fortran_order': False"), "{header}");
+    let at = header.find("'shape': (").unwrap() + 10;
+    let shape: Vec<usize> = header[at..at + header[at..].find(')').unwrap()]
+        .split(',')
+        .filter(|t| !t.trim().is_empty())
+        .map(|t| t.trim().parse().unwrap())
+        .collect();
+    let data: Vec<T> = bytes[10 + len..]
+        .chunks_exact(std::mem::size_of::<T>())
+        .map(T::from_le)
+        .collect();
+    assert_eq!(data.len(), shape.iter().product::<usize>());
+    (shape, data)
+}
+
+trait FromLe {
+    fn from_le(b: &[u8]) -> Self;
+}
+impl FromLe for f64 {
+    fn from_le(b: &[u8]) -> Self {
+        f64::from_le_bytes(b.try_into().unwrap())
+    }
+}
+impl FromLe for u32 {
+    fn from_le(b: &[u8]) -> Self {
+        u32::from_le_bytes(b.try_into().unwrap())
+    }
+}
+impl FromLe for u64 {
+    fn from_le(b: &[u8]) -> Self {
+        u64::from_le_bytes(b.try_into().unwrap())
+    }
+}
+
+#[test]
+fn surface_exports_read_back_with_the_same_counts() {
+    let p = problem("torus", &[("edge", 0.1)]);
+    let c = build(&p);
+    let mesh = Mesh::new(&c, Some(&p.system), &Projection::Auto, "torus");
+    let (nv, nf) = (c.vertex_count(), c.level(2).len());
+    let tris: usize = mesh.triangles.len();
+    let out = dir("surface");
+    for (name, format) in MeshFormat::ALL {
+        let path = out.join(format!("torus.{name}"));
+        write_mesh(&path, &mesh, format).unwrap();
+        assert!(!out.join(format!("torus.{name}.partial")).exists());
+        match format {
+            MeshFormat::Ply => {
+                let (v, cells, _) = read_ply(&text(&path));
+                assert_eq!((v, cells.len()), (nv, nf));
+                assert!(cells.iter().flatten().all(|&i| i < nv));
+                assert!(cells.iter().all(|c| c.len() >= 3));
+            }
+            MeshFormat::Obj => {
+                let (v, cells) = read_obj(&text(&path));
+                assert_eq!((v, cells.len()), (nv, nf));
+                assert!(cells.iter().flatten().all(|&i| i < nv));
+            }
+            MeshFormat::Off => {
+                let (v, cells) = read_off(&text(&path));
+                assert_eq!((v, cells.len()), (nv, nf));
+            }
+            MeshFormat::Stl => {
+                let bytes = std::fs::read(&path).unwrap();
+                let n = u32::from_le_bytes(bytes[80..84].try_into().unwrap()) as usize;
+                assert_eq!(n, tris);
+                assert_eq!(bytes.len(), 84 + 50 * n);
+                // Each stored normal is a unit vector.
+                let f = |o: usize| f32::from_le_bytes(bytes[o..o + 4].try_into().unwrap());
+                let nrm = [f(84), f(88), f(92)];
+                let len = nrm.iter().map(|x| x * x).sum::<f32>().sqrt();
+                assert!((len - 1.0).abs() < 1e-4);
+            }
+            MeshFormat::Medit => {
+                let sections = read_medit(&text(&path));
+                assert_eq!(sections["Vertices"], nv);
+                assert_eq!(sections["Triangles"], tris);
+            }
+            MeshFormat::Vtu => {
+                let s = text(&path);
+                assert_eq!(attr(&s, "NumberOfPoints"), nv);
+                assert_eq!(attr(&s, "NumberOfCells"), nf);
+                assert_eq!(floats(vtu_array(&s, "coordinates")).len(), 3 * nv);
+                let offsets = floats(vtu_array(&s, "offsets"));
+                let conn = floats(vtu_array(&s, "connectivity"));
+                assert_eq!(offsets.len(), nf);
+                assert_eq!(*offsets.last().unwrap() as usize, conn.len());
+                assert!(floats(vtu_array(&s, "types")).iter().all(|&t| t == 7.0));
+            }
+            MeshFormat::Npz => {
+                let e = npz_entries(&path);
+                let (shape, v) = read_npy::<f64>(&e["vertices"], "<f8");
+                assert_eq!(shape, vec![nv, 3]);
+                assert_eq!(v, c.points());
+                let (shape, _) = read_npy::<u32>(&e["triangles"], "<u4");
+                assert_eq!(shape, vec![tris, 3]);
+                for j in 1..=2 {
+                    let (_, off) = read_npy::<u64>(&e[&format!("cells{j}_offsets")], "<u8");
+                    assert_eq!(off.len(), c.counts()[j] + 1);
+                    let (_, fac) = read_npy::<u32>(&e[&format!("cells{j}_facets")], "<u4");
+                    assert_eq!(*off.last().unwrap() as usize, fac.len());
+                }
+            }
+        }
+    }
+    std::fs::remove_dir_all(out).unwrap();
+}
+
+#[test]
+fn curves_volumes_and_projections() {
+    let out = dir("other");
+    // A curve: lines in OBJ, edges in PLY, Medit and VTU.
+    let p = problem("circle", &[]);
+    let c = build(&p);
+    let mesh = Mesh::new(&c, Some(&p.system), &Projection::Auto, "circle");
+    let path = out.join("c.obj");
+    write_mesh(&path, &mesh, MeshFormat::Obj).unwrap();
+    let (v, lines) = read_obj(&text(&path));
+    assert_eq!((v, lines.len()), (c.vertex_count(), c.level(1).len()));
+    write_mesh(&out.join("c.ply"), &mesh, MeshFormat::Ply).unwrap();
+    let (_, edges, _) = read_ply(&text(&out.join("c.ply")));
+    assert_eq!(edges.len(), c.level(1).len());
+    assert!(write_mesh(&out.join("c.off"), &mesh, MeshFormat::Off).is_err());
+
+    // A 3-manifold: S^3 in R^4 seen on x1, x2, x3 covers the unit ball twice, so the
+    // tetrahedra add up to twice its volume (less the O(edge^2) shrinkage of M-hat).
+    let p = problem("sphere", &[("m", 3.0), ("d", 4.0), ("edge", 0.2)]);
+    let c = build(&p);
+    let mesh = Mesh::new(&c, None, &Projection::Axes(vec![0, 1, 2]), "s3");
+    let path = out.join("s3.mesh");
+    write_mesh(&path, &mesh, MeshFormat::Medit).unwrap();
+    let sections = read_medit(&text(&path));
+    assert_eq!(sections["Vertices"], c.vertex_count());
+    assert_eq!(sections["Tetrahedra"], mesh.tetrahedra.len());
+    let vol: f64 = mesh
+        .tetrahedra
+        .iter()
+        .map(|t| {
+            let [a, b, cc, d] = t.map(|i| &mesh.xyz[3 * i as usize..3 * i as usize + 3]);
+            let u = [b[0] - a[0], b[1] - a[1], b[2] - a[2]];
+            let v = [cc[0] - a[0], cc[1] - a[1], cc[2] - a[2]];
+            let w = [d[0] - a[0], d[1] - a[1], d[2] - a[2]];
+            (u[0] * (v[1] * w[2] - v[2] * w[1]) - u[1] * (v[0] * w[2] - v[2] * w[0])
+                + u[2] * (v[0] * w[1] - v[1] * w[0]))
+                .abs()
+                / 6.0
+        })
+        .sum();
+    let ball = 4.0 / 3.0 * std::f64::consts::PI;
+    assert!(
+        (vol - 2.0 * ball).abs() < 0.05 * ball,
+        "tetrahedra volume {vol}"
+    );
+    write_mesh(&out.join("s3.vtu"), &mesh, MeshFormat::Vtu).unwrap();
+    let s = text(&out.join("s3.vtu"));
+    assert_eq!(attr(&s, "NumberOfCells"), mesh.tetrahedra.len());
+    assert!(write_mesh(&out.join("s3.ply"), &mesh, MeshFormat::Ply).is_err());
+
+    // Surfaces in R^4 are projected by PCA, and the file says how.
+    let p = problem("flat-torus", &[("edge", 0.3)]);
+    let c = build(&p);
+    let mesh = Mesh::new(&c, None, &Projection::Pca, "flat torus");
+    write_mesh(&out.join("ft.ply"), &mesh, MeshFormat::Ply).unwrap();
+    let (nv, faces, head) = read_ply(&text(&out.join("ft.ply")));
+    assert_eq!((nv, faces.len()), (c.vertex_count(), c.level(2).len()));
+    assert!(head.contains("projection: pca: centre ["), "{head}");
+    write_mesh(&out.join("ft.vtu"), &mesh, MeshFormat::Vtu).unwrap();
+    let s = text(&out.join("ft.vtu"));
+    let coords = floats(vtu_array(&s, "coordinates"));
+    assert_eq!(coords, c.points(), "the d-D coordinates are kept exactly");
+    std::fs::remove_dir_all(out).unwrap();
+}
+
+#[test]
+fn the_picture_decodes_at_its_size_and_is_not_blank() {
+    let out = dir("png");
+    for (name, params) in [
+        ("torus", vec![("edge", 0.1)]),
+        ("circle", vec![]),
+        ("complex-cosine", vec![("edge", 0.2)]),
+    ] {
+        let p = problem(name, &params);
+        let c = build(&p);
+        let mesh = Mesh::new(&c, Some(&p.system), &Projection::Auto, name);
+        let pic = Picture::render(&mesh, 320, 200, name).unwrap();
+        let path = out.join(format!("{name}.png"));
+        pic.write_png(&path).unwrap();
+        let decoder =
+            png::Decoder::new(std::io::BufReader::new(std::fs::File::open(&path).unwrap()));
+        let mut reader = decoder.read_info().unwrap();
+        let mut buf = vec![0; reader.output_buffer_size().unwrap()];
+        let info = reader.next_frame(&mut buf).unwrap();
+        assert_eq!((info.width, info.height), (320, 200), "{name}");
+        let px = &buf[..info.buffer_size()];
+        let mean = px.iter().map(|&b| b as f64).sum::<f64>() / px.len() as f64;
+        let var = px.iter().map(|&b| (b as f64 - mean).powi(2)).sum::<f64>() / px.len() as f64;
+        assert!(var > 200.0, "{name}: pixel variance {var}");
+    }
+    let p = problem("circle", &[]);
+    let c = build(&p);
+    let mesh = Mesh::new(&c, None, &Projection::Auto, "circle");
+    assert!(Picture::render(&mesh, 10, 10, "").is_err());
+    std::fs::remove_dir_all(out).unwrap();
+}
