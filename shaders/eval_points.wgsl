@@ -5,7 +5,7 @@
 
 struct Params {
     count: u32,
-    _pad0: u32,
+    row_stride: u32,
     _pad1: u32,
     _pad2: u32,
 }
@@ -16,7 +16,7 @@ struct Params {
 
 @compute @workgroup_size(64)
 fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
-    let i = gid.x;
+    let i = gid.x + gid.y * params.row_stride;
     if (i >= params.count) {
         return;
     }

@@ -46,6 +46,9 @@ pub enum Error {
     /// A trace or scan that cannot run as asked (no seed, seed off M, box too large...).
     #[error("trace: {0}")]
     Trace(String),
+    /// No usable GPU, or a GPU operation that failed.
+    #[error("gpu: {0}")]
+    Gpu(String),
     /// Input/output failure, with the path involved.
     #[error("{0}")]
     Io(String),

@@ -33,6 +33,8 @@ enum Command {
     Trace(Box<TraceArgs>),
     /// List the built-in manifolds and their parameters.
     Presets,
+    /// List the GPU adapters wgpu finds, with their features.
+    Info,
     /// Read a spec or preset, project its seeds onto M, locate them in the triangulation and
     /// check the WGSL emitted for f and its Jacobian.
     Check {
@@ -48,9 +50,42 @@ enum Command {
 }
 
 fn main() -> ExitCode {
+    // Silence a Mesa Vulkan layer that writes to stderr when no display is set; done first,
+    // before any thread exists.
+    if std::env::var_os("NODEVICE_SELECT").is_none() {
+        std::env::set_var("NODEVICE_SELECT", "1");
+    }
     let cli = Cli::parse();
     let result = match cli.command {
         Some(Command::Trace(args)) => cli::trace::run(&args),
+        Some(Command::Info) => {
+            let list = isomesh::gpu::adapters();
+            if list.is_empty() {
+                println!(
+                    "no GPU adapter: wgpu found no driver that runs compute shaders; \
+                     --backend auto uses the CPU, --backend gpu fails"
+                );
+            }
+            for (i, a) in list.iter().enumerate() {
+                println!(
+                    "{}{}: {} ({}, {}{}), driver {}, SHADER_F64 {}, storage binding {} MiB",
+                    if i == 0 { "* " } else { "  " },
+                    i,
+                    a.name,
+                    a.backend,
+                    a.device_type,
+                    if a.is_software() {
+                        ", software: auto skips it"
+                    } else {
+                        ""
+                    },
+                    a.driver,
+                    if a.shader_f64 { "yes" } else { "no" },
+                    a.max_storage_binding >> 20
+                );
+            }
+            Ok(())
+        }
         Some(Command::Presets) => {
             for p in PRESETS {
                 let params: Vec<String> =

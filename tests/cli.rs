@@ -232,10 +232,6 @@ fn bad_requests_fail_cleanly() {
         assert!(!e.contains("panicked"), "{e}");
     };
     fails(
-        &["trace", "--preset", "circle", "--backend", "gpu"],
-        "no GPU oracle",
-    );
-    fails(
         &["trace", "--preset", "sphere", "--seed", "0,0,0"],
         "off the manifold",
     );
@@ -301,6 +297,108 @@ fn bad_requests_fail_cleanly() {
         "projection",
     );
     assert!(!dir.join("c.off").exists() && !dir.join("c.off.partial").exists());
+}
+
+/// Runs isomesh with every GPU driver hidden.
+fn isomesh_without_gpu(dir: &Path, args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_isomesh"))
+        .args(args)
+        .current_dir(dir)
+        .env("VK_ICD_FILENAMES", "/nonexistent.json")
+        .env("__EGL_VENDOR_LIBRARY_FILENAMES", "/nonexistent.json")
+        .env("NODEVICE_SELECT", "1")
+        .output()
+        .expect("the isomesh binary runs")
+}
+
+#[test]
+fn without_a_gpu_auto_falls_back_and_gpu_fails_cleanly() {
+    let dir = scratch("nogpu");
+    let o = isomesh_without_gpu(
+        &dir,
+        &[
+            "trace",
+            "--preset",
+            "circle",
+            "--backend",
+            "auto",
+            "--report",
+            "r.json",
+        ],
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(stderr(&o).contains("using the CPU"), "{}", stderr(&o));
+    assert_eq!(report(&dir, "r.json")["backend"], "cpu");
+    let o = isomesh_without_gpu(&dir, &["trace", "--preset", "circle", "--backend", "gpu"]);
+    assert!(!o.status.success());
+    let e = stderr(&o);
+    assert!(
+        e.contains("no GPU adapter") && !e.contains("panicked"),
+        "{e}"
+    );
+    let o = isomesh_without_gpu(&dir, &["info"]);
+    assert!(o.status.success());
+    assert!(String::from_utf8_lossy(&o.stdout).contains("no GPU adapter"));
+}
+
+#[test]
+fn the_gpu_backend_reports_itself_and_matches_the_cpu() {
+    let dir = scratch("gpu");
+    let o = isomesh(&dir, &["info"]);
+    assert!(o.status.success());
+    if String::from_utf8_lossy(&o.stdout).contains("no GPU adapter") {
+        assert!(
+            std::env::var_os("ISOMESH_REQUIRE_GPU").is_none(),
+            "ISOMESH_REQUIRE_GPU is set but there is no GPU adapter"
+        );
+        eprintln!("skipped: no GPU adapter");
+        return;
+    }
+    for precision in ["auto", "f32"] {
+        let o = isomesh(
+            &dir,
+            &[
+                "trace",
+                "--preset",
+                "torus",
+                "--param",
+                "edge=0.1",
+                "--backend",
+                "gpu",
+                "--precision",
+                precision,
+                "--report",
+                "g.json",
+                "--out",
+                "g.csv",
+            ],
+        );
+        assert!(o.status.success(), "{}", stderr(&o));
+        let g = report(&dir, "g.json");
+        assert!(g["backend"].as_str().unwrap().starts_with("gpu: "), "{g}");
+        let share = g["recheck_share"].as_f64().unwrap();
+        assert!((0.0..=1.0).contains(&share));
+        if precision == "f32" {
+            assert_eq!(g["precision"], "f32");
+        }
+        let o = isomesh(
+            &dir,
+            &[
+                "trace", "--preset", "torus", "--param", "edge=0.1", "--report", "c.json", "--out",
+                "c.csv",
+            ],
+        );
+        assert!(o.status.success());
+        let c = report(&dir, "c.json");
+        assert_eq!(g["simplex_count"], c["simplex_count"]);
+        assert_eq!(g["cells"], c["cells"]);
+        let read = |f: &str| std::fs::read_to_string(dir.join(f)).unwrap();
+        assert_eq!(
+            read("g.csv"),
+            read("c.csv"),
+            "{precision}: the samples differ"
+        );
+    }
 }
 
 #[test]

@@ -15,8 +15,9 @@ use isomesh::export::{
     write_atomic, write_mesh, write_sample, Mesh, MeshFormat, Projection, SampleFormat,
 };
 use isomesh::expr::{ImplicitFunction, Problem};
+use isomesh::gpu::{Gpu, GpuOracle, Precision};
 use isomesh::memory;
-use isomesh::trace::{exhaustive, trace, CpuOracle, Progress, TraceOptions};
+use isomesh::trace::{exhaustive, trace, CpuOracle, Oracle, Progress, TraceOptions};
 use isomesh::triangulation::TriangulationKind;
 use isomesh::{Error, Result};
 use serde_json::json;
@@ -31,6 +32,17 @@ pub enum Backend {
     /// The GPU oracle.
     Gpu,
     /// A hardware GPU when there is one, else the CPU.
+    Auto,
+}
+
+/// `--precision`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum PrecisionArg {
+    /// 32-bit shaders.
+    F32,
+    /// 64-bit shaders.
+    F64,
+    /// f64 where the adapter has it, else f32.
     Auto,
 }
 
@@ -73,9 +85,14 @@ pub struct TraceArgs {
     /// seed, else 0).
     #[arg(long)]
     pub search: Option<usize>,
-    /// Oracle backend [default: cpu].
+    /// Oracle backend [default: cpu]: gpu uses any adapter (software ones too); auto a
+    /// hardware GPU when there is one, else the CPU.
     #[arg(long, value_enum)]
     pub backend: Option<Backend>,
+    /// GPU shader precision: f64 (needs SHADER_F64), f32 (a filter; crossings are computed
+    /// on the CPU), or auto (f64 where the adapter has it) [default: auto].
+    #[arg(long, value_enum)]
+    pub precision: Option<PrecisionArg>,
     /// Worker threads (default: all cores).
     #[arg(long)]
     pub threads: Option<usize>,
@@ -283,21 +300,34 @@ fn run_in_pool(p: &Problem, args: &TraceArgs, threads: usize) -> Result<()> {
     let sys = &p.system;
     let (d, k) = (sys.ambient_dim(), sys.codim());
     let tri = p.triangulation.build(d)?;
-    let backend = match args.backend.unwrap_or(Backend::Cpu) {
-        Backend::Cpu => "cpu".to_string(),
-        Backend::Auto => {
-            if !args.quiet {
-                eprintln!("note: this build has no GPU oracle yet; using the CPU");
-            }
-            "cpu".to_string()
-        }
-        Backend::Gpu => {
-            return Err(Error::Trace(
-                "this build has no GPU oracle yet: use --backend cpu".into(),
-            ))
-        }
+    let precision = match args.precision.unwrap_or(PrecisionArg::Auto) {
+        PrecisionArg::F32 => Some(Precision::F32),
+        PrecisionArg::F64 => Some(Precision::F64),
+        PrecisionArg::Auto => None,
     };
-    let oracle = CpuOracle::new(sys);
+    let gpu = match args.backend.unwrap_or(Backend::Cpu) {
+        Backend::Cpu => None,
+        Backend::Gpu => Some(Gpu::open(true)?),
+        Backend::Auto => match Gpu::open(false) {
+            Ok(g) => Some(g),
+            Err(e) => {
+                if !args.quiet {
+                    eprintln!("note: {e}; using the CPU");
+                }
+                None
+            }
+        },
+    };
+    let cpu_oracle = CpuOracle::new(sys);
+    let gpu_oracle = match gpu {
+        Some(g) => Some(GpuOracle::new(g, sys, precision)?),
+        None => None,
+    };
+    let oracle: &dyn Oracle = match &gpu_oracle {
+        Some(o) => o,
+        None => &cpu_oracle,
+    };
+    let backend = oracle.name();
     let cancel = interrupt_flag();
     cancel.store(false, Ordering::Relaxed);
     let bar = progress_bar(args.quiet);
@@ -326,9 +356,9 @@ fn run_in_pool(p: &Problem, args: &TraceArgs, threads: usize) -> Result<()> {
     memory::reset_peak();
     let base = memory::live_bytes();
     let sample = if args.exhaustive {
-        exhaustive(sys, &tri, &oracle, &opts)?
+        exhaustive(sys, &tri, oracle, &opts)?
     } else {
-        trace(sys, &tri, &oracle, &opts)?
+        trace(sys, &tri, oracle, &opts)?
     };
     let peak = memory::peak_bytes().saturating_sub(base);
     bar.finish_and_clear();
@@ -419,6 +449,13 @@ fn run_in_pool(p: &Problem, args: &TraceArgs, threads: usize) -> Result<()> {
             "simplex_count": n,
             "components": complex.as_ref().map_or(st.components, |c| c.1.components),
             "backend": backend,
+            "precision": gpu_oracle.as_ref().map_or("f64", |o| o.precision().ty()),
+            "recheck_share": gpu_oracle.as_ref().map(|o| {
+                let st = o.stats();
+                if st.solved > 0 { st.rechecked as f64 / st.solved as f64 } else { 0.0 }
+            }),
+            "gpu_s": gpu_oracle.as_ref().map(|o| o.stats().gpu_s),
+            "adapter": gpu_oracle.as_ref().map(|o| o.gpu().adapter.clone()),
             "threads": threads,
             "elapsed_s": st.elapsed_s,
             "simplices_per_s": per_s,

@@ -62,6 +62,8 @@ pub struct Decider {
 
 /// Safety factor on the first-order error bound, per unit of n.
 const BOUND_FACTOR: f64 = 16.0;
+/// Largest unit * cond(L) for which the first-order bound is trusted.
+const MAX_RELATIVE_BOUND: f64 = 0.125;
 
 impl Decider {
     /// Work space for k-simplices (k equations).
@@ -174,19 +176,30 @@ impl Decider {
         for i in 0..n {
             lambda[i] = inv[i * n];
         }
-        // |L| |lambda|, row by row (row 0 of L is all ones).
+        // Row sums of |L|, then Skeel's condition numbers c_i = (|L^-1| |L| 1)_i. The error of
+        // lambda_i is bounded by unit * c_i * max|lambda| (normwise in lambda: Gauss-Jordan is
+        // not componentwise stable), and only while unit * max c_i is small; otherwise the
+        // exact path decides.
         let abs_l = &mut self.abs_l;
         for r in 0..n {
-            abs_l[r] = (0..n).map(|j| (l0[r * n + j] * lambda[j]).abs()).sum();
+            abs_l[r] = (0..n).map(|t| l0[r * n + t].abs()).sum();
         }
         let unit = BOUND_FACTOR * n as f64 * f64::EPSILON;
-        let mut all_positive = true;
-        for i in 0..n {
-            let li = lambda[i];
-            if !li.is_finite() {
+        let mut lmax: f64 = 0.0;
+        for &l in lambda[..n].iter() {
+            if !l.is_finite() {
                 return None;
             }
-            let err: f64 = unit * (0..n).map(|j| inv[i * n + j].abs() * abs_l[j]).sum::<f64>();
+            lmax = lmax.max(l.abs());
+        }
+        let mut all_positive = true;
+        for i in 0..n {
+            let c: f64 = (0..n).map(|j| inv[i * n + j].abs() * abs_l[j]).sum();
+            if unit * c > MAX_RELATIVE_BOUND || c.is_nan() {
+                return None;
+            }
+            let li = lambda[i];
+            let err = unit * c * lmax;
             if li < -err {
                 // Row i of L^-1 starts with a certainly negative entry.
                 return Some(Status::Outside);
@@ -199,7 +212,7 @@ impl Decider {
 
 /// A power of two near 1/v (1 for 0 or subnormal v): scaling by it is exact.
 #[inline]
-fn pow2_inverse(v: f64) -> f64 {
+pub(crate) fn pow2_inverse(v: f64) -> f64 {
     let e = ((v.to_bits() >> 52) & 0x7ff) as i64;
     if e == 0 || e == 0x7ff {
         return 1.0;

@@ -1,3 +1,10 @@
-//! The GPU side: WGSL emitted from the equation language and validated with naga.
+//! The GPU side: WGSL emitted from the equation language and validated with naga, adapters
+//! and devices through wgpu, and the GPU intersection oracle.
 
+pub mod context;
+pub mod oracle;
 pub mod wgsl;
+
+pub use context::{adapters, AdapterSummary, Gpu};
+pub use oracle::{GpuOracle, GpuStats};
+pub use wgsl::Precision;

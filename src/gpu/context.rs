@@ -1,0 +1,133 @@
+//! Adapters and devices: which GPUs wgpu offers, and one opened for compute.
+
+use serde::Serialize;
+
+use crate::error::{Error, Result};
+
+/// What an adapter is, for reports and `isomesh info`.
+#[derive(Clone, Debug, Serialize)]
+pub struct AdapterSummary {
+    /// The adapter's name.
+    pub name: String,
+    /// The graphics API wgpu drives it through (Vulkan, Metal, Dx12, Gl).
+    pub backend: String,
+    /// DiscreteGpu, IntegratedGpu, VirtualGpu, Cpu (software) or Other.
+    pub device_type: String,
+    /// The driver and its version.
+    pub driver: String,
+    /// Whether shaders can use f64 (SHADER_F64).
+    pub shader_f64: bool,
+    /// Largest storage buffer binding, bytes.
+    pub max_storage_binding: u64,
+}
+
+impl AdapterSummary {
+    fn of(a: &wgpu::Adapter) -> Self {
+        let info = a.get_info();
+        AdapterSummary {
+            name: info.name.clone(),
+            backend: format!("{:?}", info.backend),
+            device_type: format!("{:?}", info.device_type),
+            driver: format!("{} {}", info.driver, info.driver_info)
+                .trim()
+                .to_string(),
+            shader_f64: a.features().contains(wgpu::Features::SHADER_F64),
+            max_storage_binding: a.limits().max_storage_buffer_binding_size,
+        }
+    }
+
+    /// Whether it is a software rasterizer (lavapipe, llvmpipe, WARP): slower than the CPU
+    /// path, so `--backend auto` skips it.
+    pub fn is_software(&self) -> bool {
+        self.device_type == "Cpu"
+    }
+}
+
+fn instance() -> wgpu::Instance {
+    wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle())
+}
+
+/// Preference order: hardware first, then Vulkan/Metal/Dx12 before GL (GL has no f64).
+fn rank(a: &wgpu::Adapter) -> (u8, u8, u8) {
+    let info = a.get_info();
+    let ty = match info.device_type {
+        wgpu::DeviceType::DiscreteGpu => 0,
+        wgpu::DeviceType::IntegratedGpu => 1,
+        wgpu::DeviceType::VirtualGpu => 2,
+        wgpu::DeviceType::Other => 3,
+        wgpu::DeviceType::Cpu => 4,
+    };
+    let api = match info.backend {
+        wgpu::Backend::Vulkan | wgpu::Backend::Metal | wgpu::Backend::Dx12 => 0,
+        _ => 1,
+    };
+    let f64 = u8::from(!a.features().contains(wgpu::Features::SHADER_F64));
+    (ty, api, f64)
+}
+
+fn compute_adapters() -> Vec<wgpu::Adapter> {
+    let mut v: Vec<wgpu::Adapter> =
+        pollster::block_on(instance().enumerate_adapters(wgpu::Backends::all()))
+            .into_iter()
+            .filter(|a| {
+                a.get_downlevel_capabilities()
+                    .flags
+                    .contains(wgpu::DownlevelFlags::COMPUTE_SHADERS)
+            })
+            .collect();
+    v.sort_by_key(rank);
+    v
+}
+
+/// Every adapter that runs compute shaders, best first.
+pub fn adapters() -> Vec<AdapterSummary> {
+    compute_adapters().iter().map(AdapterSummary::of).collect()
+}
+
+/// An open device for compute.
+pub struct Gpu {
+    /// The device.
+    pub device: wgpu::Device,
+    /// Its queue.
+    pub queue: wgpu::Queue,
+    /// What it is.
+    pub adapter: AdapterSummary,
+}
+
+impl Gpu {
+    /// Opens the best adapter; with `allow_software` false, software adapters are skipped.
+    /// Errors when none is usable.
+    pub fn open(allow_software: bool) -> Result<Self> {
+        let list = compute_adapters();
+        let adapter = list
+            .into_iter()
+            .find(|a| allow_software || a.get_info().device_type != wgpu::DeviceType::Cpu)
+            .ok_or_else(|| {
+                Error::Gpu(if allow_software {
+                    "no GPU adapter: wgpu found no driver that runs compute shaders (on Linux, \
+                     install a Vulkan driver, e.g. mesa-vulkan-drivers)"
+                        .into()
+                } else {
+                    "no hardware GPU adapter (software adapters are skipped)".into()
+                })
+            })?;
+        let summary = AdapterSummary::of(&adapter);
+        let mut features = wgpu::Features::empty();
+        if summary.shader_f64 {
+            features |= wgpu::Features::SHADER_F64;
+        }
+        let desc = wgpu::DeviceDescriptor {
+            label: Some("isomesh"),
+            required_features: features,
+            required_limits: adapter.limits(),
+            ..Default::default()
+        };
+        let (device, queue) = pollster::block_on(adapter.request_device(&desc))
+            .map_err(|e| Error::Gpu(format!("{}: cannot open the device: {e}", summary.name)))?;
+        Ok(Gpu {
+            device,
+            queue,
+            adapter: summary,
+        })
+    }
+}

@@ -1,0 +1,446 @@
+//! The GPU oracle: the intersection test's (k+1)x(k+1) solves in a WGSL compute shader
+//! (`shaders/solve.wgsl`, the twin of the CPU fast path).
+//!
+//! What makes S the CPU's S: the shader only takes decisions that its error bound certifies.
+//! In f64 it keeps certain crossings (with their lambda) and certain misses; in f32 it keeps
+//! only certain misses, so every crossing point is computed by the CPU in f64. Everything else
+//! is re-decided on the CPU by [`Decider`], exactly where needed.
+//!
+//! Vertex values are computed on the CPU (each lattice vertex once per trace): a GPU may
+//! contract a * b + c into a fused multiply-add, which changes f by an ulp, and S is defined
+//! by the CPU's values. With the same values, the f64 shader's lambda equals the CPU's where
+//! the device rounds division and does not contract (lavapipe: bit-identical); elsewhere
+//! points may differ by a few ulps, never the decisions.
+
+use std::borrow::Cow;
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::Mutex;
+use std::time::Instant;
+
+use rayon::prelude::*;
+use wgpu::util::DeviceExt;
+
+use super::context::Gpu;
+use super::wgsl::{validate, Precision};
+use crate::cpu::decide::{pow2_inverse, Decider, Status};
+use crate::error::{Error, Result};
+use crate::expr::ImplicitFunction;
+use crate::trace::Oracle;
+use crate::triangulation::Triangulation;
+
+/// The solve shader, before its prelude.
+pub const SOLVE_WGSL: &str = include_str!("../../shaders/solve.wgsl");
+
+/// Safety factor of the error bound, and the largest trusted relative bound, as on the CPU.
+const BOUND_FACTOR: f64 = 16.0;
+const MAX_RELATIVE_BOUND: f64 = 0.125;
+/// Threads per workgroup in both shaders.
+const WORKGROUP: u32 = 64;
+/// Workgroups per dispatch row (the limit per dimension).
+const MAX_GROUPS: u32 = 65_535;
+
+/// Shader verdicts.
+const CROSSED: u32 = 0;
+const OUTSIDE: u32 = 1;
+
+/// Counters of a GPU oracle.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct GpuStats {
+    /// Simplices sent to the solve shader.
+    pub solved: u64,
+    /// Of those, decided again on the CPU.
+    pub rechecked: u64,
+    /// Seconds in GPU round trips (upload, compute, readback).
+    pub gpu_s: f64,
+}
+
+/// The solve shader for k-simplices in precision `p`, validated by naga.
+pub fn solve_shader(k: usize, p: Precision) -> Result<String> {
+    let n = k + 1;
+    let (eps, big) = match p {
+        Precision::F32 => ("1.1920929e-7f", "3.4028235e38f"),
+        Precision::F64 => ("2.220446049250313e-16lf", "1.7976931348623157e308lf"),
+    };
+    let lit = |v: f64| match p {
+        Precision::F32 => format!("{v:?}f"),
+        Precision::F64 => format!("{v:?}lf"),
+    };
+    let src = format!(
+        "alias real = {ty};\nconst N: u32 = {n}u;\nconst NN: u32 = {nn}u;\nconst EPS: real = {eps};\n\
+         const BOUND: real = {bound};\nconst BIG: real = {big};\n\
+         const MAX_RELATIVE_BOUND: real = {rel};\n{SOLVE_WGSL}",
+        bound = lit(BOUND_FACTOR),
+        rel = lit(MAX_RELATIVE_BOUND),
+        ty = p.ty(),
+        nn = n * n
+    );
+    validate(&src, p)?;
+    Ok(src)
+}
+
+/// The intersection oracle on a GPU.
+pub struct GpuOracle<'f> {
+    gpu: Gpu,
+    f: &'f dyn ImplicitFunction,
+    k: usize,
+    precision: Precision,
+    solve: wgpu::ComputePipeline,
+    solved: AtomicU64,
+    rechecked: AtomicU64,
+    gpu_ns: AtomicU64,
+    lock: Mutex<()>,
+}
+
+impl<'f> GpuOracle<'f> {
+    /// An oracle for `f` on `gpu`; `precision` None picks f64 where the adapter has it.
+    pub fn new(
+        gpu: Gpu,
+        f: &'f dyn ImplicitFunction,
+        precision: Option<Precision>,
+    ) -> Result<Self> {
+        let has_f64 = gpu.adapter.shader_f64;
+        let precision = match precision {
+            Some(Precision::F64) if !has_f64 => {
+                return Err(Error::Gpu(format!(
+                    "{} has no SHADER_F64: use --precision f32 or auto",
+                    gpu.adapter.name
+                )))
+            }
+            Some(p) => p,
+            None if has_f64 => Precision::F64,
+            None => Precision::F32,
+        };
+        let k = f.codim();
+        let solve = pipeline(&gpu, &solve_shader(k, precision)?, "solve")?;
+        Ok(GpuOracle {
+            gpu,
+            f,
+            k,
+            precision,
+            solve,
+            solved: AtomicU64::new(0),
+            rechecked: AtomicU64::new(0),
+            gpu_ns: AtomicU64::new(0),
+            lock: Mutex::new(()),
+        })
+    }
+
+    /// The precision of the shaders.
+    pub fn precision(&self) -> Precision {
+        self.precision
+    }
+
+    /// The adapter.
+    pub fn gpu(&self) -> &Gpu {
+        &self.gpu
+    }
+
+    /// What the oracle did so far.
+    pub fn stats(&self) -> GpuStats {
+        GpuStats {
+            solved: self.solved.load(Ordering::Relaxed),
+            rechecked: self.rechecked.load(Ordering::Relaxed),
+            gpu_s: self.gpu_ns.load(Ordering::Relaxed) as f64 * 1e-9,
+        }
+    }
+
+    /// Items per dispatch so that `bytes_per_item` fits one storage binding.
+    fn chunk(&self, bytes_per_item: usize) -> usize {
+        let max = self.gpu.adapter.max_storage_binding.min(1 << 30) as usize;
+        (max / bytes_per_item.max(1)).clamp(1, 1 << 22)
+    }
+
+    /// Runs `pipeline` over `count` items with `input` bound at 0 and outputs of the given
+    /// byte sizes at 1.., returning the outputs' bytes.
+    fn run(
+        &self,
+        pipeline: &wgpu::ComputePipeline,
+        input: &[u8],
+        count: usize,
+        outputs: &[usize],
+    ) -> Result<Vec<Vec<u8>>> {
+        let _guard = self
+            .lock
+            .lock()
+            .map_err(|_| Error::Gpu("poisoned".into()))?;
+        let started = Instant::now();
+        let dev = &self.gpu.device;
+        let storage = wgpu::BufferUsages::STORAGE;
+        let inbuf = dev.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("input"),
+            contents: if input.is_empty() { &[0; 16] } else { input },
+            usage: storage,
+        });
+        let outs: Vec<(wgpu::Buffer, wgpu::Buffer, u64)> = outputs
+            .iter()
+            .map(|&size| {
+                let size = (size.max(4) as u64).next_multiple_of(4);
+                let out = dev.create_buffer(&wgpu::BufferDescriptor {
+                    label: Some("output"),
+                    size,
+                    usage: storage | wgpu::BufferUsages::COPY_SRC,
+                    mapped_at_creation: false,
+                });
+                let staging = dev.create_buffer(&wgpu::BufferDescriptor {
+                    label: Some("readback"),
+                    size,
+                    usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+                    mapped_at_creation: false,
+                });
+                (out, staging, size)
+            })
+            .collect();
+        let groups = (count as u32).div_ceil(WORKGROUP).max(1);
+        let (gx, gy) = if groups > MAX_GROUPS {
+            (MAX_GROUPS, groups.div_ceil(MAX_GROUPS))
+        } else {
+            (groups, 1)
+        };
+        let params: [u32; 4] = [count as u32, gx * WORKGROUP, 0, 0];
+        let ubuf = dev.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("params"),
+            contents: bytemuck::cast_slice(&params),
+            usage: wgpu::BufferUsages::UNIFORM,
+        });
+        let layout = pipeline.get_bind_group_layout(0);
+        let mut entries = vec![wgpu::BindGroupEntry {
+            binding: 0,
+            resource: inbuf.as_entire_binding(),
+        }];
+        for (i, (out, _, _)) in outs.iter().enumerate() {
+            entries.push(wgpu::BindGroupEntry {
+                binding: i as u32 + 1,
+                resource: out.as_entire_binding(),
+            });
+        }
+        entries.push(wgpu::BindGroupEntry {
+            binding: outs.len() as u32 + 1,
+            resource: ubuf.as_entire_binding(),
+        });
+        let bind = dev.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: None,
+            layout: &layout,
+            entries: &entries,
+        });
+        let mut enc = dev.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: None });
+        {
+            let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: None,
+                timestamp_writes: None,
+            });
+            pass.set_pipeline(pipeline);
+            pass.set_bind_group(0, &bind, &[]);
+            pass.dispatch_workgroups(gx, gy, 1);
+        }
+        for (out, staging, size) in &outs {
+            enc.copy_buffer_to_buffer(out, 0, staging, 0, *size);
+        }
+        self.gpu.queue.submit([enc.finish()]);
+        let mut results = Vec::with_capacity(outs.len());
+        for ((_, staging, _), &want) in outs.iter().zip(outputs) {
+            let slice = staging.slice(..);
+            let (tx, rx) = std::sync::mpsc::channel();
+            slice.map_async(wgpu::MapMode::Read, move |r| {
+                let _ = tx.send(r);
+            });
+            dev.poll(wgpu::PollType::wait_indefinitely())
+                .map_err(|e| Error::Gpu(format!("waiting for the device: {e}")))?;
+            rx.recv()
+                .map_err(|_| Error::Gpu("the readback was dropped".into()))?
+                .map_err(|e| Error::Gpu(format!("readback: {e}")))?;
+            let view = slice
+                .get_mapped_range()
+                .map_err(|e| Error::Gpu(format!("readback: {e}")))?;
+            results.push(view[..want].to_vec());
+            drop(view);
+            staging.unmap();
+        }
+        self.gpu_ns
+            .fetch_add(started.elapsed().as_nanos() as u64, Ordering::Relaxed);
+        Ok(results)
+    }
+
+    fn encode_reals(&self, v: &[f64]) -> Vec<u8> {
+        match self.precision {
+            Precision::F64 => bytemuck::cast_slice(v).to_vec(),
+            Precision::F32 => {
+                let f: Vec<f32> = v.iter().map(|&x| x as f32).collect();
+                bytemuck::cast_slice(&f).to_vec()
+            }
+        }
+    }
+
+    fn decode_reals(&self, bytes: &[u8]) -> Vec<f64> {
+        match self.precision {
+            Precision::F64 => bytemuck::pod_collect_to_vec(bytes),
+            Precision::F32 => bytemuck::pod_collect_to_vec::<u8, f32>(bytes)
+                .into_iter()
+                .map(f64::from)
+                .collect(),
+        }
+    }
+
+    fn real_size(&self) -> usize {
+        match self.precision {
+            Precision::F64 => 8,
+            Precision::F32 => 4,
+        }
+    }
+}
+
+fn pipeline(gpu: &Gpu, src: &str, label: &str) -> Result<wgpu::ComputePipeline> {
+    let dev = &gpu.device;
+    let scope = dev.push_error_scope(wgpu::ErrorFilter::Validation);
+    let module = dev.create_shader_module(wgpu::ShaderModuleDescriptor {
+        label: Some(label),
+        source: wgpu::ShaderSource::Wgsl(Cow::Borrowed(src)),
+    });
+    let p = dev.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+        label: Some(label),
+        layout: None,
+        module: &module,
+        entry_point: Some("main"),
+        compilation_options: Default::default(),
+        cache: None,
+    });
+    if let Some(e) = pollster::block_on(scope.pop()) {
+        return Err(Error::Gpu(format!("{label} pipeline: {e}")));
+    }
+    Ok(p)
+}
+
+impl Oracle for GpuOracle<'_> {
+    fn name(&self) -> String {
+        format!("gpu: {}", self.gpu.adapter.name)
+    }
+
+    fn eval_vertices(
+        &self,
+        tri: &Triangulation,
+        lattice: &[i32],
+        values: &mut [f64],
+    ) -> Result<()> {
+        let (d, k) = (tri.dim(), self.k);
+        let mut points = vec![0.0; lattice.len()];
+        points
+            .par_chunks_mut(d)
+            .zip(lattice.par_chunks(d))
+            .for_each(|(p, v)| tri.vertex_coords(v, p));
+        values
+            .par_chunks_mut(2048 * k)
+            .zip(points.par_chunks(2048 * d))
+            .for_each(|(out, x)| self.f.eval_batch(x, out));
+        Ok(())
+    }
+
+    fn decide(
+        &self,
+        values: &[f64],
+        simplices: &[u32],
+        status: &mut [Status],
+        lambda: &mut [f64],
+    ) -> Result<u64> {
+        let k = self.k;
+        let n = k + 1;
+        let count = status.len();
+        // Host side: the CPU's cheap filters, then the scaled rows of L for the rest.
+        let mut pre = vec![None::<Status>; count];
+        let mut rows = vec![0.0f64; count * k * n];
+        pre.par_iter_mut()
+            .zip(rows.par_chunks_mut(k * n))
+            .zip(simplices.par_chunks(n))
+            .for_each(|((p, r), idx)| {
+                let val = |j: usize, c: usize| values[idx[j] as usize * k + c];
+                if (0..n).any(|j| (0..k).any(|c| !val(j, c).is_finite())) {
+                    *p = Some(Status::NonFinite);
+                    return;
+                }
+                for c in 0..k {
+                    let pos = (0..n).all(|j| val(j, c) > 0.0);
+                    let neg = (0..n).all(|j| val(j, c) < 0.0);
+                    if pos || neg {
+                        *p = Some(Status::Outside);
+                        return;
+                    }
+                }
+                for c in 0..k {
+                    let big = (0..n).fold(0.0f64, |m, j| m.max(val(j, c).abs()));
+                    let s = pow2_inverse(big);
+                    for j in 0..n {
+                        r[c * n + j] = val(j, c) * s;
+                    }
+                }
+            });
+        let sent: Vec<usize> = (0..count).filter(|&i| pre[i].is_none()).collect();
+        let mut flags = vec![0u32; sent.len()];
+        let mut lam = vec![0.0f64; sent.len() * n];
+        let rs = self.real_size();
+        let chunk = self.chunk(rs * k * n);
+        let mut packed = Vec::new();
+        for (c, ids) in sent.chunks(chunk).enumerate() {
+            packed.clear();
+            for &i in ids {
+                packed.extend_from_slice(&rows[i * k * n..(i + 1) * k * n]);
+            }
+            let m = ids.len();
+            let res = self.run(
+                &self.solve,
+                &self.encode_reals(&packed),
+                m,
+                &[m * n * rs, m * 4],
+            )?;
+            lam[c * chunk * n..c * chunk * n + m * n].copy_from_slice(&self.decode_reals(&res[0]));
+            flags[c * chunk..c * chunk + m].copy_from_slice(&bytemuck::pod_collect_to_vec(&res[1]));
+        }
+        self.solved.fetch_add(sent.len() as u64, Ordering::Relaxed);
+        for (i, p) in pre.iter().enumerate() {
+            if let Some(s) = p {
+                status[i] = *s;
+            }
+        }
+        // Keep what the bound certifies; decide the rest on the CPU.
+        let keep_crossed = self.precision == Precision::F64;
+        let recheck: Vec<usize> = sent
+            .iter()
+            .enumerate()
+            .filter_map(|(j, &i)| match flags[j] {
+                OUTSIDE => {
+                    status[i] = Status::Outside;
+                    None
+                }
+                CROSSED if keep_crossed => {
+                    status[i] = Status::Crossed;
+                    lambda[i * n..(i + 1) * n].copy_from_slice(&lam[j * n..(j + 1) * n]);
+                    None
+                }
+                _ => Some(i),
+            })
+            .collect();
+        self.rechecked
+            .fetch_add(recheck.len() as u64, Ordering::Relaxed);
+        let decided: Vec<(Status, bool, Vec<f64>)> = recheck
+            .par_iter()
+            .map_init(
+                || (Decider::new(k), vec![0.0; n * k]),
+                |(decider, local), &i| {
+                    for (j, &v) in simplices[i * n..(i + 1) * n].iter().enumerate() {
+                        let v = v as usize;
+                        local[j * k..(j + 1) * k].copy_from_slice(&values[v * k..(v + 1) * k]);
+                    }
+                    let mut l = vec![0.0; n];
+                    let dec = decider.decide(local, &mut l);
+                    (dec.status, dec.exact, l)
+                },
+            )
+            .collect();
+        let mut exact = 0;
+        for (&i, (s, e, l)) in recheck.iter().zip(decided) {
+            status[i] = s;
+            exact += e as u64;
+            if s.crossed() {
+                lambda[i * n..(i + 1) * n].copy_from_slice(&l);
+            }
+        }
+        Ok(exact)
+    }
+}

@@ -1,0 +1,179 @@
+//! The GPU oracle against the CPU: the solve shader against its CPU twin, a stress test of
+//! badly conditioned simplices, and whole traces giving the same S and the same topology.
+//! Runs on any adapter wgpu finds (lavapipe in CI); skipped, saying why, when there is none.
+
+use isomesh::complex::Complex;
+use isomesh::cpu::decide::Status;
+use isomesh::expr::{preset, Problem};
+use isomesh::gpu::{Gpu, GpuOracle, Precision};
+use isomesh::trace::{trace, CpuOracle, Oracle, Sample, TraceOptions};
+use rand::{Rng, SeedableRng};
+
+/// An adapter, or None (the test is skipped, saying why) when there is none, unless
+/// ISOMESH_REQUIRE_GPU is set (CI, where lavapipe is installed).
+fn gpu() -> Option<Gpu> {
+    match Gpu::open(true) {
+        Ok(g) => Some(g),
+        Err(e) if std::env::var_os("ISOMESH_REQUIRE_GPU").is_some() => {
+            panic!("ISOMESH_REQUIRE_GPU is set but {e}")
+        }
+        Err(e) => {
+            eprintln!("skipped: {e}");
+            None
+        }
+    }
+}
+
+fn precisions(g: &Gpu) -> Vec<Option<Precision>> {
+    if g.adapter.shader_f64 {
+        vec![Some(Precision::F64), Some(Precision::F32)]
+    } else {
+        vec![Some(Precision::F32)]
+    }
+}
+
+fn problem(name: &str, params: &[(&str, f64)]) -> Problem {
+    let params: Vec<(String, f64)> = params.iter().map(|(n, v)| (n.to_string(), *v)).collect();
+    preset(name, &params).unwrap()
+}
+
+fn run(p: &Problem, oracle: &dyn Oracle) -> Sample {
+    let tri = p.triangulation.build(p.dim()).unwrap();
+    let opts = TraceOptions {
+        seeds: p.seeds.clone(),
+        bbox: p.bbox.clone(),
+        ..TraceOptions::default()
+    };
+    trace(&p.system, &tri, oracle, &opts).unwrap()
+}
+
+/// Random vertex values of n k-simplices, a third of them nearly degenerate (two vertices
+/// almost equal) and a third with tiny components, as row indices into the values.
+fn hard_batch(k: usize, count: usize, seed: u64) -> (Vec<f64>, Vec<u32>) {
+    let n = k + 1;
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+    let mut values = Vec::with_capacity(count * n * k);
+    for s in 0..count {
+        let base: Vec<f64> = (0..k).map(|_| rng.random_range(-1.0..1.0)).collect();
+        for j in 0..n {
+            for &b in &base {
+                let v: f64 = match s % 3 {
+                    0 => rng.random_range(-1.0..1.0),
+                    1 if j == n - 1 => b + rng.random_range(-1e-12..1e-12),
+                    1 if j == 0 => b,
+                    _ => rng.random_range(-1.0..1.0) * 10f64.powi(rng.random_range(-12..2)),
+                };
+                values.push(v);
+            }
+        }
+    }
+    let idx = (0..(count * n) as u32).collect();
+    (values, idx)
+}
+
+#[test]
+fn gpu_decisions_equal_cpu_decisions_on_hard_simplices() {
+    let Some(g) = gpu() else { return };
+    let has_f64 = g.adapter.shader_f64;
+    drop(g);
+    let f = isomesh::expr::ClosureFunction::new(4, 3, |_, o| o.fill(0.0)).unwrap();
+    for precision in [Precision::F32, Precision::F64] {
+        if precision == Precision::F64 && !has_f64 {
+            continue;
+        }
+        let oracle = GpuOracle::new(gpu().unwrap(), &f, Some(precision)).unwrap();
+        let cpu = CpuOracle::new(&f);
+        let count = 1_000_000;
+        let (values, idx) = hard_batch(3, count, 7);
+        let (mut s_gpu, mut s_cpu) = (vec![Status::Outside; count], vec![Status::Outside; count]);
+        let (mut l_gpu, mut l_cpu) = (vec![0.0; count * 4], vec![0.0; count * 4]);
+        oracle
+            .decide(&values, &idx, &mut s_gpu, &mut l_gpu)
+            .unwrap();
+        cpu.decide(&values, &idx, &mut s_cpu, &mut l_cpu).unwrap();
+        let mismatches = s_gpu.iter().zip(&s_cpu).filter(|(a, b)| a != b).count();
+        assert_eq!(mismatches, 0, "{precision:?}: decisions differ");
+        let crossed = s_cpu.iter().filter(|s| s.crossed()).count();
+        assert!(crossed > 1000, "the batch should hold crossings");
+        let mut worst: f64 = 0.0;
+        for i in 0..count {
+            if s_cpu[i].crossed() {
+                for j in 0..4 {
+                    worst = worst.max((l_gpu[i * 4 + j] - l_cpu[i * 4 + j]).abs());
+                }
+            }
+        }
+        assert!(worst <= 1e-12, "{precision:?}: lambda differs by {worst:e}");
+        let st = oracle.stats();
+        assert_eq!(st.solved as usize, s_cpu.len() - count_filtered(&values, 3));
+        eprintln!(
+            "{precision:?}: {} solved, {} rechecked on the CPU, lambda within {worst:e}",
+            st.solved, st.rechecked
+        );
+    }
+}
+
+/// Simplices the host filters (a component of one strict sign) before the shader.
+fn count_filtered(values: &[f64], k: usize) -> usize {
+    let n = k + 1;
+    values
+        .chunks_exact(n * k)
+        .filter(|v| {
+            (0..k).any(|c| (0..n).all(|j| v[j * k + c] > 0.0) || (0..n).all(|j| v[j * k + c] < 0.0))
+        })
+        .count()
+}
+
+#[test]
+fn gpu_traces_give_the_cpu_sample_and_topology() {
+    let Some(g) = gpu() else { return };
+    let modes = precisions(&g);
+    drop(g);
+    let cases: Vec<(&str, Vec<(&str, f64)>)> = vec![
+        ("circle", vec![("edge", 0.1)]),
+        ("circle", vec![("edge", 0.03)]),
+        ("sphere", vec![("edge", 0.2)]),
+        ("sphere", vec![("edge", 0.1)]),
+        ("sphere", vec![("d", 5.0), ("edge", 0.3)]),
+        ("torus", vec![("edge", 0.1)]),
+        ("torus", vec![("edge", 0.07)]),
+        ("chair", vec![("edge", 0.15)]),
+        ("chair", vec![("edge", 0.1)]),
+        ("flat-torus", vec![("edge", 0.3)]),
+        ("flat-torus", vec![("edge", 0.2)]),
+        (
+            "3-torus",
+            vec![("a", 0.5), ("b", 0.5), ("c", 0.5), ("edge", 0.7)],
+        ),
+        ("complex-cosine", vec![("edge", 0.25)]),
+        ("complex-cosine", vec![("edge", 0.2)]),
+        ("bagel-klein", vec![("edge", 0.4)]),
+        ("cut-flat-torus", vec![("edge", 0.3)]),
+    ];
+    for precision in modes {
+        for (name, params) in &cases {
+            let p = problem(name, params);
+            let cpu = run(&p, &CpuOracle::new(&p.system));
+            let oracle = GpuOracle::new(gpu().unwrap(), &p.system, precision).unwrap();
+            let gpu = run(&p, &oracle);
+            let what = format!("{name} {params:?} {precision:?}");
+            assert_eq!(cpu.sorted_keys(), gpu.sorted_keys(), "{what}: S differs");
+            assert_eq!(cpu.rim_len(), gpu.rim_len(), "{what}");
+            let worst = cpu
+                .points()
+                .iter()
+                .zip(gpu.points())
+                .fold(0.0f64, |m, (a, b)| m.max((a - b).abs()));
+            assert!(worst <= 1e-12, "{what}: points differ by {worst:e}");
+            let tc = Complex::build(&cpu, &p.system, p.bbox.as_deref())
+                .unwrap()
+                .topology();
+            let tg = Complex::build(&gpu, &p.system, p.bbox.as_deref())
+                .unwrap()
+                .topology();
+            assert_eq!(tc.cells, tg.cells, "{what}");
+            assert_eq!(tc.betti_mod2, tg.betti_mod2, "{what}");
+            assert!(oracle.stats().solved > 0, "{what}: the GPU did nothing");
+        }
+    }
+}
