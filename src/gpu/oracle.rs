@@ -18,7 +18,6 @@ use std::sync::Mutex;
 use std::time::Instant;
 
 use rayon::prelude::*;
-use wgpu::util::DeviceExt;
 
 use super::context::Gpu;
 use super::wgsl::{validate, Precision};
@@ -88,7 +87,8 @@ pub struct GpuOracle<'f> {
     solved: AtomicU64,
     rechecked: AtomicU64,
     gpu_ns: AtomicU64,
-    lock: Mutex<()>,
+    /// Buffers kept across calls, by role; they grow when a batch needs more.
+    buffers: Mutex<Vec<Option<wgpu::Buffer>>>,
 }
 
 impl<'f> GpuOracle<'f> {
@@ -121,7 +121,7 @@ impl<'f> GpuOracle<'f> {
             solved: AtomicU64::new(0),
             rechecked: AtomicU64::new(0),
             gpu_ns: AtomicU64::new(0),
-            lock: Mutex::new(()),
+            buffers: Mutex::new(Vec::new()),
         })
     }
 
@@ -159,34 +159,43 @@ impl<'f> GpuOracle<'f> {
         count: usize,
         outputs: &[usize],
     ) -> Result<Vec<Vec<u8>>> {
-        let _guard = self
-            .lock
+        let mut pool = self
+            .buffers
             .lock()
-            .map_err(|_| Error::Gpu("poisoned".into()))?;
+            .map_err(|_| Error::Gpu("a previous GPU call panicked".into()))?;
         let started = Instant::now();
         let dev = &self.gpu.device;
         let storage = wgpu::BufferUsages::STORAGE;
-        let inbuf = dev.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-            label: Some("input"),
-            contents: if input.is_empty() { &[0; 16] } else { input },
-            usage: storage,
-        });
+        let in_size = (input.len().max(16) as u64).next_multiple_of(4);
+        let inbuf = reuse(
+            dev,
+            &mut pool,
+            0,
+            in_size,
+            storage | wgpu::BufferUsages::COPY_DST,
+        );
+        if !input.is_empty() {
+            self.gpu.queue.write_buffer(&inbuf, 0, input);
+        }
         let outs: Vec<(wgpu::Buffer, wgpu::Buffer, u64)> = outputs
             .iter()
-            .map(|&size| {
+            .enumerate()
+            .map(|(i, &size)| {
                 let size = (size.max(4) as u64).next_multiple_of(4);
-                let out = dev.create_buffer(&wgpu::BufferDescriptor {
-                    label: Some("output"),
+                let out = reuse(
+                    dev,
+                    &mut pool,
+                    2 + 2 * i,
                     size,
-                    usage: storage | wgpu::BufferUsages::COPY_SRC,
-                    mapped_at_creation: false,
-                });
-                let staging = dev.create_buffer(&wgpu::BufferDescriptor {
-                    label: Some("readback"),
+                    storage | wgpu::BufferUsages::COPY_SRC,
+                );
+                let staging = reuse(
+                    dev,
+                    &mut pool,
+                    3 + 2 * i,
                     size,
-                    usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
-                    mapped_at_creation: false,
-                });
+                    wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+                );
                 (out, staging, size)
             })
             .collect();
@@ -197,11 +206,16 @@ impl<'f> GpuOracle<'f> {
             (groups, 1)
         };
         let params: [u32; 4] = [count as u32, gx * WORKGROUP, 0, 0];
-        let ubuf = dev.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-            label: Some("params"),
-            contents: bytemuck::cast_slice(&params),
-            usage: wgpu::BufferUsages::UNIFORM,
-        });
+        let ubuf = reuse(
+            dev,
+            &mut pool,
+            1,
+            16,
+            wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+        );
+        self.gpu
+            .queue
+            .write_buffer(&ubuf, 0, bytemuck::cast_slice(&params));
         let layout = pipeline.get_bind_group_layout(0);
         let mut entries = vec![wgpu::BindGroupEntry {
             binding: 0,
@@ -237,8 +251,8 @@ impl<'f> GpuOracle<'f> {
         }
         self.gpu.queue.submit([enc.finish()]);
         let mut results = Vec::with_capacity(outs.len());
-        for ((_, staging, _), &want) in outs.iter().zip(outputs) {
-            let slice = staging.slice(..);
+        for ((_, staging, size), &want) in outs.iter().zip(outputs) {
+            let slice = staging.slice(..*size);
             let (tx, rx) = std::sync::mpsc::channel();
             slice.map_async(wgpu::MapMode::Read, move |r| {
                 let _ = tx.send(r);
@@ -284,6 +298,33 @@ impl<'f> GpuOracle<'f> {
         match self.precision {
             Precision::F64 => 8,
             Precision::F32 => 4,
+        }
+    }
+}
+
+/// The pooled buffer in `slot`, replaced by a larger one when it holds fewer than `size`
+/// bytes.
+fn reuse(
+    dev: &wgpu::Device,
+    pool: &mut Vec<Option<wgpu::Buffer>>,
+    slot: usize,
+    size: u64,
+    usage: wgpu::BufferUsages,
+) -> wgpu::Buffer {
+    if pool.len() <= slot {
+        pool.resize(slot + 1, None);
+    }
+    match &pool[slot] {
+        Some(b) if b.size() >= size => b.clone(),
+        _ => {
+            let b = dev.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("isomesh"),
+                size,
+                usage,
+                mapped_at_creation: false,
+            });
+            pool[slot] = Some(b.clone());
+            b
         }
     }
 }
