@@ -224,22 +224,13 @@ fn ply(w: &mut impl Write, mesh: &Mesh) -> io::Result<()> {
         writeln!(w, "property list uchar int vertex_indices")?;
     }
     writeln!(w, "end_header")?;
-    for i in 0..mesh.vertex_count() {
-        let p = mesh.p3(i);
-        writeln!(w, "{:?} {:?} {:?}", p[0], p[1], p[2])?;
-    }
+    xyz_rows(w, mesh)?;
     if curve {
         for e in mesh.edges() {
             writeln!(w, "{} {}", e[0], e[1])?;
         }
     } else {
-        for p in mesh.polygons() {
-            write!(w, "{}", p.len())?;
-            for v in p {
-                write!(w, " {v}")?;
-            }
-            writeln!(w)?;
-        }
+        counted_polygons(w, mesh)?;
     }
     Ok(())
 }
@@ -276,10 +267,21 @@ fn off(w: &mut impl Write, mesh: &Mesh) -> io::Result<()> {
         faces,
         mesh.complex.level(1).len()
     )?;
+    xyz_rows(w, mesh)?;
+    counted_polygons(w, mesh)
+}
+
+/// Vertex rows `x y z` (PLY, OFF).
+fn xyz_rows(w: &mut impl Write, mesh: &Mesh) -> io::Result<()> {
     for i in 0..mesh.vertex_count() {
         let p = mesh.p3(i);
         writeln!(w, "{:?} {:?} {:?}", p[0], p[1], p[2])?;
     }
+    Ok(())
+}
+
+/// Polygon rows `n v1 .. vn`, 0-based (PLY, OFF).
+fn counted_polygons(w: &mut impl Write, mesh: &Mesh) -> io::Result<()> {
     for p in mesh.polygons() {
         write!(w, "{}", p.len())?;
         for v in p {

@@ -24,7 +24,7 @@ use super::wgsl::{validate, Precision};
 use crate::cpu::decide::{pow2_inverse, Decider, Status};
 use crate::error::{Error, Result};
 use crate::expr::ImplicitFunction;
-use crate::trace::Oracle;
+use crate::trace::{CpuOracle, Oracle};
 use crate::triangulation::Triangulation;
 
 /// The solve shader, before its prelude.
@@ -361,17 +361,8 @@ impl Oracle for GpuOracle<'_> {
         lattice: &[i32],
         values: &mut [f64],
     ) -> Result<()> {
-        let (d, k) = (tri.dim(), self.k);
-        let mut points = vec![0.0; lattice.len()];
-        points
-            .par_chunks_mut(d)
-            .zip(lattice.par_chunks(d))
-            .for_each(|(p, v)| tri.vertex_coords(v, p));
-        values
-            .par_chunks_mut(2048 * k)
-            .zip(points.par_chunks(2048 * d))
-            .for_each(|(out, x)| self.f.eval_batch(x, out));
-        Ok(())
+        // On the CPU: see the module documentation.
+        CpuOracle::new(self.f).eval_vertices(tri, lattice, values)
     }
 
     fn decide(
