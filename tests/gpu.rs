@@ -177,3 +177,52 @@ fn gpu_traces_give_the_cpu_sample_and_topology() {
         }
     }
 }
+
+#[test]
+fn the_solve_shader_matches_its_cpu_twin() {
+    let Some(g) = gpu() else { return };
+    let modes = precisions(&g);
+    drop(g);
+    let k = 3;
+    let n = k + 1;
+    let count = 200_000;
+    let (values, idx) = hard_batch(k, count, 11);
+    // The CPU fast path on the same inputs.
+    let mut decider = isomesh::cpu::decide::Decider::new(k);
+    let mut cpu_lambda = vec![0.0; count * n];
+    let cpu: Vec<Option<Status>> = (0..count)
+        .map(|i| {
+            decider.fast_path(
+                &values[i * n * k..(i + 1) * n * k],
+                &mut cpu_lambda[i * n..(i + 1) * n],
+            )
+        })
+        .collect();
+    let f = isomesh::expr::ClosureFunction::new(4, 3, |_, o| o.fill(0.0)).unwrap();
+    for precision in modes {
+        let oracle = GpuOracle::new(gpu().unwrap(), &f, precision).unwrap();
+        let (gpu, lambda) = oracle.solve_stage(&values, &idx).unwrap();
+        let (mut differ, mut worst) = (0, 0.0f64);
+        for i in 0..count {
+            match (cpu[i], gpu[i]) {
+                (Some(a), Some(b)) => {
+                    assert_eq!(a, b, "{precision:?}: simplex {i} decided both ways");
+                    if a.crossed() && precision == Some(Precision::F64) {
+                        for j in 0..n {
+                            worst = worst.max((lambda[i * n + j] - cpu_lambda[i * n + j]).abs());
+                        }
+                    }
+                }
+                (a, b) if a != b => differ += 1,
+                _ => {}
+            }
+        }
+        eprintln!("{precision:?}: {differ} certain on one side only, lambda within {worst:e}");
+        if precision == Some(Precision::F64) {
+            // The same arithmetic: at most a rounding apart, so a certainty may flip only
+            // at the margin.
+            assert!(differ <= count / 10_000, "{differ} verdicts differ");
+            assert!(worst <= 1e-12, "lambda differs by {worst:e}");
+        }
+    }
+}

@@ -112,8 +112,10 @@ impl Decider {
         }
     }
 
-    /// Gauss-Jordan in f64; `None` when a needed sign is not certain.
-    fn fast_path(&mut self, values: &[f64], lambda: &mut [f64]) -> Option<Status> {
+    /// The fast path alone (no NaN or sign filter first): Gauss-Jordan in f64 with the error
+    /// bound, writing lambda; `None` when a needed sign is not certain. The GPU's solve
+    /// shader is its twin.
+    pub fn fast_path(&mut self, values: &[f64], lambda: &mut [f64]) -> Option<Status> {
         let n = self.n;
         let k = n - 1;
         let (l0, a, inv) = (&mut self.l0, &mut self.a, &mut self.inv);

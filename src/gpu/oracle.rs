@@ -350,6 +350,73 @@ fn pipeline(gpu: &Gpu, src: &str, label: &str) -> Result<wgpu::ComputePipeline> 
     Ok(p)
 }
 
+/// Rows 1..k of the labelling matrix of the simplex with vertex rows `idx` of `values`,
+/// each scaled by a power of two near 1/max|row| (exactly as the CPU fast path does), into
+/// `out` (k rows of k + 1).
+fn scale_rows(values: &[f64], idx: &[u32], k: usize, out: &mut [f64]) {
+    let n = k + 1;
+    let val = |j: usize, c: usize| values[idx[j] as usize * k + c];
+    for c in 0..k {
+        let big = (0..n).fold(0.0f64, |m, j| m.max(val(j, c).abs()));
+        let s = pow2_inverse(big);
+        for j in 0..n {
+            out[c * n + j] = val(j, c) * s;
+        }
+    }
+}
+
+impl GpuOracle<'_> {
+    /// The solve shader on `m` simplices given as packed scaled rows (k rows of k + 1 each):
+    /// per simplex a verdict (0 crossed, 1 outside, 2 uncertain) and lambda.
+    fn solve_packed(&self, packed: &[f64], m: usize) -> Result<(Vec<u32>, Vec<f64>)> {
+        let n = self.k + 1;
+        let per = self.k * n;
+        let rs = self.real_size();
+        let chunk = self.chunk(rs * per);
+        let mut flags = Vec::with_capacity(m);
+        let mut lam = Vec::with_capacity(m * n);
+        for part in packed.chunks(chunk * per) {
+            let c = part.len() / per;
+            let res = self.run(
+                &self.solve,
+                &self.encode_reals(part),
+                c,
+                &[c * n * rs, c * 4],
+            )?;
+            lam.extend(self.decode_reals(&res[0]));
+            flags.extend(bytemuck::pod_collect_to_vec::<u8, u32>(&res[1]));
+        }
+        Ok((flags, lam))
+    }
+
+    /// The shader stage alone, the twin of [`Decider::fast_path`]: for each simplex (rows of
+    /// vertex indices into `values`, as in [`Oracle::decide`]), the shader's verdict as the
+    /// fast path's `Option<Status>` (None: uncertain), and lambda. No host filter runs first.
+    pub fn solve_stage(
+        &self,
+        values: &[f64],
+        simplices: &[u32],
+    ) -> Result<(Vec<Option<Status>>, Vec<f64>)> {
+        let (k, n) = (self.k, self.k + 1);
+        let m = simplices.len() / n;
+        let mut packed = vec![0.0; m * k * n];
+        packed
+            .par_chunks_mut(k * n)
+            .zip(simplices.par_chunks(n))
+            .for_each(|(r, idx)| scale_rows(values, idx, k, r));
+        let (flags, lam) = self.solve_packed(&packed, m)?;
+        let verdicts = flags
+            .iter()
+            .map(|&f| match f {
+                CROSSED => Some(Status::Crossed),
+                OUTSIDE => Some(Status::Outside),
+                _ => None,
+            })
+            .collect();
+        Ok((verdicts, lam))
+    }
+}
+
 impl Oracle for GpuOracle<'_> {
     fn name(&self) -> String {
         format!("gpu: {}", self.gpu.adapter.name)
@@ -395,35 +462,15 @@ impl Oracle for GpuOracle<'_> {
                         return;
                     }
                 }
-                for c in 0..k {
-                    let big = (0..n).fold(0.0f64, |m, j| m.max(val(j, c).abs()));
-                    let s = pow2_inverse(big);
-                    for j in 0..n {
-                        r[c * n + j] = val(j, c) * s;
-                    }
-                }
+                scale_rows(values, idx, k, r);
             });
         let sent: Vec<usize> = (0..count).filter(|&i| pre[i].is_none()).collect();
-        let mut flags = vec![0u32; sent.len()];
-        let mut lam = vec![0.0f64; sent.len() * n];
-        let rs = self.real_size();
-        let chunk = self.chunk(rs * k * n);
-        let mut packed = Vec::new();
-        for (c, ids) in sent.chunks(chunk).enumerate() {
-            packed.clear();
-            for &i in ids {
-                packed.extend_from_slice(&rows[i * k * n..(i + 1) * k * n]);
-            }
-            let m = ids.len();
-            let res = self.run(
-                &self.solve,
-                &self.encode_reals(&packed),
-                m,
-                &[m * n * rs, m * 4],
-            )?;
-            lam[c * chunk * n..c * chunk * n + m * n].copy_from_slice(&self.decode_reals(&res[0]));
-            flags[c * chunk..c * chunk + m].copy_from_slice(&bytemuck::pod_collect_to_vec(&res[1]));
+        let mut packed = Vec::with_capacity(sent.len() * k * n);
+        for &i in &sent {
+            packed.extend_from_slice(&rows[i * k * n..(i + 1) * k * n]);
         }
+        drop(rows);
+        let (flags, lam) = self.solve_packed(&packed, sent.len())?;
         self.solved.fetch_add(sent.len() as u64, Ordering::Relaxed);
         for (i, p) in pre.iter().enumerate() {
             if let Some(s) = p {
