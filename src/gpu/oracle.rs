@@ -4,7 +4,7 @@
 //! What makes S the CPU's S: the shader only takes decisions that its error bound certifies.
 //! In f64 it keeps certain crossings (with their lambda) and certain misses; in f32 it keeps
 //! only certain misses, so every crossing point is computed by the CPU in f64. Everything else
-//! is re-decided on the CPU by [`Decider`], exactly where needed.
+//! is re-decided on the CPU by [`Decider`](crate::cpu::decide::Decider), exactly where needed.
 //!
 //! Vertex values are computed on the CPU (each lattice vertex once per trace): a GPU may
 //! contract a * b + c into a fused multiply-add, which changes f by an ulp, and S is defined
@@ -21,7 +21,7 @@ use rayon::prelude::*;
 
 use super::context::Gpu;
 use super::wgsl::{validate, Precision};
-use crate::cpu::decide::{pow2_inverse, Decider, Status};
+use crate::cpu::decide::{pow2_inverse, Status};
 use crate::error::{Error, Result};
 use crate::expr::ImplicitFunction;
 use crate::trace::{CpuOracle, Oracle};
@@ -389,7 +389,7 @@ impl GpuOracle<'_> {
         Ok((flags, lam))
     }
 
-    /// The shader stage alone, the twin of [`Decider::fast_path`]: for each simplex (rows of
+    /// The shader stage alone, the twin of [`Decider::fast_path`](crate::cpu::decide::Decider::fast_path): for each simplex (rows of
     /// vertex indices into `values`, as in [`Oracle::decide`]), the shader's verdict as the
     /// fast path's `Option<Status>` (None: uncertain), and lambda. No host filter runs first.
     pub fn solve_stage(
@@ -497,27 +497,23 @@ impl Oracle for GpuOracle<'_> {
             .collect();
         self.rechecked
             .fetch_add(recheck.len() as u64, Ordering::Relaxed);
-        let decided: Vec<(Status, bool, Vec<f64>)> = recheck
-            .par_iter()
-            .map_init(
-                || (Decider::new(k), vec![0.0; n * k]),
-                |(decider, local), &i| {
-                    for (j, &v) in simplices[i * n..(i + 1) * n].iter().enumerate() {
-                        let v = v as usize;
-                        local[j * k..(j + 1) * k].copy_from_slice(&values[v * k..(v + 1) * k]);
-                    }
-                    let mut l = vec![0.0; n];
-                    let dec = decider.decide(local, &mut l);
-                    (dec.status, dec.exact, l)
-                },
-            )
+        // The CPU oracle on the rest, gathered into one batch.
+        let sub: Vec<u32> = recheck
+            .iter()
+            .flat_map(|&i| simplices[i * n..(i + 1) * n].iter().copied())
             .collect();
-        let mut exact = 0;
-        for (&i, (s, e, l)) in recheck.iter().zip(decided) {
+        let mut sub_status = vec![Status::Outside; recheck.len()];
+        let mut sub_lambda = vec![0.0; recheck.len() * n];
+        let exact =
+            CpuOracle::new(self.f).decide(values, &sub, &mut sub_status, &mut sub_lambda)?;
+        for ((&i, &s), l) in recheck
+            .iter()
+            .zip(&sub_status)
+            .zip(sub_lambda.chunks_exact(n))
+        {
             status[i] = s;
-            exact += e as u64;
             if s.crossed() {
-                lambda[i * n..(i + 1) * n].copy_from_slice(&l);
+                lambda[i * n..(i + 1) * n].copy_from_slice(l);
             }
         }
         Ok(exact)

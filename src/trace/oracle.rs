@@ -14,7 +14,7 @@ const CHUNK: usize = 2048;
 
 /// A backend that evaluates f and decides k-simplices, one large batch per call.
 pub trait Oracle: Sync {
-    /// A name for reports ("cpu", "gpu: <adapter>").
+    /// A name for reports (`cpu`, or `gpu: ` and the adapter name).
     fn name(&self) -> String;
 
     /// f at lattice vertices: `lattice` holds n rows of d, `values` gets n rows of k.
