@@ -150,28 +150,6 @@ impl Complex {
             .take(self.m)
             .collect()
     }
-    /// The sorted vertex indices of every j-cell (j >= 1).
-    pub fn cell_vertices(&self, j: usize) -> Vec<Vec<u32>> {
-        let mut cur: Vec<Vec<u32>> = (0..self.level(1).len())
-            .map(|i| self.level(1).facets(i).to_vec())
-            .collect();
-        for l in 2..=j {
-            let level = self.level(l);
-            cur = (0..level.len())
-                .map(|i| {
-                    let mut v: Vec<u32> = level
-                        .facets(i)
-                        .iter()
-                        .flat_map(|&f| cur[f as usize].iter().copied())
-                        .collect();
-                    v.sort_unstable();
-                    v.dedup();
-                    v
-                })
-                .collect();
-        }
-        cur
-    }
     /// The topology report (counts, Euler characteristic, manifoldness, components,
     /// orientability and Betti numbers mod 2 where defined).
     pub fn topology(&self) -> Topology {

@@ -88,20 +88,8 @@ impl Decider {
             status,
             exact: false,
         };
-        if values.iter().any(|v| !v.is_finite()) {
-            return fast(Status::NonFinite);
-        }
-        // Sign filter: a component with one strict sign at every vertex rules out a crossing.
-        for c in 0..k {
-            let (mut pos, mut neg) = (true, true);
-            for j in 0..n {
-                let v = values[j * k + c];
-                pos &= v > 0.0;
-                neg &= v < 0.0;
-            }
-            if pos || neg {
-                return fast(Status::Outside);
-            }
+        if let Some(status) = filter_verdict(k, |j, c| values[j * k + c]) {
+            return fast(status);
         }
         match self.fast_path(values, lambda) {
             Some(status) => fast(status),
@@ -122,13 +110,7 @@ impl Decider {
         // Row r of L scaled by a power of two near 1/max|row|: exact, and it changes neither
         // lambda nor the signs of L^-1's entries (columns of L^-1 scale by positive factors).
         l0[..n].fill(1.0);
-        for r in 1..n {
-            let big = (0..n).fold(0.0f64, |m, j| m.max(values[j * k + r - 1].abs()));
-            let s = pow2_inverse(big);
-            for j in 0..n {
-                l0[r * n + j] = values[j * k + r - 1] * s;
-            }
-        }
+        scaled_rows(k, |j, c| values[j * k + c], &mut l0[n..]);
         a.copy_from_slice(l0);
         inv.fill(0.0);
         for i in 0..n {
@@ -212,9 +194,36 @@ impl Decider {
     }
 }
 
+/// The verdict of the cheap filters that run before any solve, with F_j[c] = `val(j, c)`:
+/// `NonFinite` for a NaN or infinite value, `Outside` when some component keeps one strict
+/// sign at every vertex (no crossing), else `None`.
+pub(crate) fn filter_verdict(k: usize, val: impl Fn(usize, usize) -> f64) -> Option<Status> {
+    let n = k + 1;
+    if (0..n).any(|j| (0..k).any(|c| !val(j, c).is_finite())) {
+        return Some(Status::NonFinite);
+    }
+    (0..k)
+        .any(|c| (0..n).all(|j| val(j, c) > 0.0) || (0..n).all(|j| val(j, c) < 0.0))
+        .then_some(Status::Outside)
+}
+
+/// Rows 1..=k of L (row c + 1 holds component c at the k + 1 vertices) into `out`, each
+/// scaled by a power of two near 1/max|row|: exact, and it changes neither lambda nor the
+/// signs of L^-1's entries. Shared by the CPU fast path and the GPU host side.
+pub(crate) fn scaled_rows(k: usize, val: impl Fn(usize, usize) -> f64, out: &mut [f64]) {
+    let n = k + 1;
+    for c in 0..k {
+        let big = (0..n).fold(0.0f64, |m, j| m.max(val(j, c).abs()));
+        let s = pow2_inverse(big);
+        for j in 0..n {
+            out[c * n + j] = val(j, c) * s;
+        }
+    }
+}
+
 /// A power of two near 1/v (1 for 0 or subnormal v): scaling by it is exact.
 #[inline]
-pub(crate) fn pow2_inverse(v: f64) -> f64 {
+fn pow2_inverse(v: f64) -> f64 {
     let e = ((v.to_bits() >> 52) & 0x7ff) as i64;
     if e == 0 || e == 0x7ff {
         return 1.0;

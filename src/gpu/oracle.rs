@@ -21,7 +21,7 @@ use rayon::prelude::*;
 
 use super::context::Gpu;
 use super::wgsl::{validate, Precision};
-use crate::cpu::decide::{pow2_inverse, Status};
+use crate::cpu::decide::{filter_verdict, scaled_rows, Status};
 use crate::error::{Error, Result};
 use crate::expr::ImplicitFunction;
 use crate::trace::{CpuOracle, Oracle};
@@ -350,21 +350,6 @@ fn pipeline(gpu: &Gpu, src: &str, label: &str) -> Result<wgpu::ComputePipeline> 
     Ok(p)
 }
 
-/// Rows 1..k of the labelling matrix of the simplex with vertex rows `idx` of `values`,
-/// each scaled by a power of two near 1/max|row| (exactly as the CPU fast path does), into
-/// `out` (k rows of k + 1).
-fn scale_rows(values: &[f64], idx: &[u32], k: usize, out: &mut [f64]) {
-    let n = k + 1;
-    let val = |j: usize, c: usize| values[idx[j] as usize * k + c];
-    for c in 0..k {
-        let big = (0..n).fold(0.0f64, |m, j| m.max(val(j, c).abs()));
-        let s = pow2_inverse(big);
-        for j in 0..n {
-            out[c * n + j] = val(j, c) * s;
-        }
-    }
-}
-
 impl GpuOracle<'_> {
     /// The solve shader on `m` simplices given as packed scaled rows (k rows of k + 1 each):
     /// per simplex a verdict (0 crossed, 1 outside, 2 uncertain) and lambda.
@@ -403,7 +388,7 @@ impl GpuOracle<'_> {
         packed
             .par_chunks_mut(k * n)
             .zip(simplices.par_chunks(n))
-            .for_each(|(r, idx)| scale_rows(values, idx, k, r));
+            .for_each(|(r, idx)| scaled_rows(k, |j, c| values[idx[j] as usize * k + c], r));
         let (flags, lam) = self.solve_packed(&packed, m)?;
         let verdicts = flags
             .iter()
@@ -443,33 +428,18 @@ impl Oracle for GpuOracle<'_> {
         let n = k + 1;
         let count = status.len();
         // Host side: the CPU's cheap filters, then the scaled rows of L for the rest.
-        let mut pre = vec![None::<Status>; count];
-        let mut rows = vec![0.0f64; count * k * n];
-        pre.par_iter_mut()
-            .zip(rows.par_chunks_mut(k * n))
-            .zip(simplices.par_chunks(n))
-            .for_each(|((p, r), idx)| {
-                let val = |j: usize, c: usize| values[idx[j] as usize * k + c];
-                if (0..n).any(|j| (0..k).any(|c| !val(j, c).is_finite())) {
-                    *p = Some(Status::NonFinite);
-                    return;
-                }
-                for c in 0..k {
-                    let pos = (0..n).all(|j| val(j, c) > 0.0);
-                    let neg = (0..n).all(|j| val(j, c) < 0.0);
-                    if pos || neg {
-                        *p = Some(Status::Outside);
-                        return;
-                    }
-                }
-                scale_rows(values, idx, k, r);
-            });
+        let val =
+            |i: usize| move |j: usize, c: usize| values[simplices[i * n + j] as usize * k + c];
+        let pre: Vec<Option<Status>> = (0..count)
+            .into_par_iter()
+            .map(|i| filter_verdict(k, val(i)))
+            .collect();
         let sent: Vec<usize> = (0..count).filter(|&i| pre[i].is_none()).collect();
-        let mut packed = Vec::with_capacity(sent.len() * k * n);
-        for &i in &sent {
-            packed.extend_from_slice(&rows[i * k * n..(i + 1) * k * n]);
-        }
-        drop(rows);
+        let mut packed = vec![0.0; sent.len() * k * n];
+        packed
+            .par_chunks_mut(k * n)
+            .zip(&sent)
+            .for_each(|(r, &i)| scaled_rows(k, val(i), r));
         let (flags, lam) = self.solve_packed(&packed, sent.len())?;
         self.solved.fetch_add(sent.len() as u64, Ordering::Relaxed);
         for (i, p) in pre.iter().enumerate() {

@@ -220,10 +220,6 @@ impl Sample {
         let d = self.ambient_dim();
         &self.rim_points[i * d..(i + 1) * d]
     }
-    /// Words between consecutive keys in the key arrays (at least `codec().words()`).
-    pub fn stride(&self) -> usize {
-        self.stride
-    }
     /// The keys in sorted order (to compare samples as sets).
     pub fn sorted_keys(&self) -> Vec<&[u64]> {
         let mut v: Vec<&[u64]> = (0..self.len()).map(|i| self.key(i)).collect();
