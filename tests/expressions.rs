@@ -229,23 +229,29 @@ fn random_expressions_emit_valid_wgsl_and_round_trip() {
                 Ok(_) => assert!(prec == Precision::F64 || !beyond_f32),
             }
         }
-        // Text form parses back to the same tree, and batch evaluation equals the tree.
+        // Text form parses back to the same tree, and batch evaluation (fused instructions,
+        // more points than one chunk of lanes) equals the tree bit for bit.
         let scope = Scope::new(d);
-        let x: Vec<f64> = (0..d).map(|_| rng.random_range(-2.0..2.0)).collect();
-        let mut out = vec![0.0; k];
-        prog.eval_batch(&x, &mut out, &mut scratch);
-        for (o, e) in exprs.iter().enumerate() {
-            let back = parse_expr(&e.to_string(), &scope).unwrap();
-            let (a, b) = (back.eval(&x), e.eval(&x));
-            assert!(
-                a.to_bits() == b.to_bits() || (a.is_nan() && b.is_nan()),
-                "round trip of {e}: {a} vs {b}"
-            );
-            let c = out[o];
-            assert!(
-                c.to_bits() == b.to_bits() || (c.is_nan() && b.is_nan()),
-                "batch {c} vs tree {b} for {e}"
-            );
+        let n = 1 + rng.random_range(0..150);
+        let xs: Vec<f64> = (0..n * d).map(|_| rng.random_range(-2.0..2.0)).collect();
+        let mut out = vec![0.0; n * k];
+        prog.eval_batch(&xs, &mut out, &mut scratch);
+        for (p, x) in xs.chunks_exact(d).enumerate() {
+            for (o, e) in exprs.iter().enumerate() {
+                let b = e.eval(x);
+                if p == 0 {
+                    let a = parse_expr(&e.to_string(), &scope).unwrap().eval(x);
+                    assert!(
+                        a.to_bits() == b.to_bits() || (a.is_nan() && b.is_nan()),
+                        "round trip of {e}: {a} vs {b}"
+                    );
+                }
+                let c = out[p * k + o];
+                assert!(
+                    c.to_bits() == b.to_bits() || (c.is_nan() && b.is_nan()),
+                    "batch {c} vs tree {b} for {e} at point {p}"
+                );
+            }
         }
     }
 }

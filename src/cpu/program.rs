@@ -41,8 +41,12 @@ pub struct Program {
     dim: usize,
     nodes: Vec<Node>,
     outputs: Vec<u32>,
-    /// Register of each node (variables and constants have their own, fixed).
-    reg: Vec<u32>,
+    /// The operations, fused and with registers allocated, in evaluation order.
+    instrs: Vec<Instr>,
+    /// Constant registers and their values.
+    consts: Vec<(u32, f64)>,
+    /// Register holding each output.
+    out_regs: Vec<u32>,
     n_regs: usize,
 }
 
@@ -111,57 +115,69 @@ impl Program {
         }
         let outputs: Vec<u32> = exprs.iter().map(|e| b.add(e)).collect();
         let nodes = b.nodes;
+        let plan = fuse(&nodes, &outputs);
 
-        // Register allocation: variables and constants keep theirs; an operation's register is
-        // freed after its last use (outputs live to the end).
-        let mut last_use = vec![0usize; nodes.len()];
-        for (i, n) in nodes.iter().enumerate() {
-            match *n {
-                Node::Un(_, a) | Node::PowI(a, _) => last_use[a as usize] = i,
-                Node::Bin(_, a, c) => {
-                    last_use[a as usize] = i;
-                    last_use[c as usize] = i;
-                }
-                _ => {}
-            }
-        }
-        for &o in &outputs {
-            last_use[o as usize] = usize::MAX;
-        }
-        let mut reg = vec![0u32; nodes.len()];
+        // Register allocation over the fused instructions: variables and constants keep their
+        // own registers; an instruction's result register is freed after its last reader
+        // (outputs live to the end).
+        let mut reg = vec![u32::MAX; nodes.len()];
         let mut n_regs = 0u32;
-        let mut free: Vec<u32> = Vec::new();
         for (i, n) in nodes.iter().enumerate() {
             if matches!(n, Node::Var(_) | Node::Const(_)) {
                 reg[i] = n_regs;
                 n_regs += 1;
             }
         }
-        for (i, n) in nodes.iter().enumerate() {
-            let args: [Option<u32>; 2] = match *n {
-                Node::Un(_, a) | Node::PowI(a, _) => [Some(a), None],
-                Node::Bin(_, a, c) => [Some(a), Some(c)],
-                _ => continue,
-            };
-            // The destination is chosen before this node's arguments are freed, so it never
-            // aliases an input (run() relies on this).
-            reg[i] = free.pop().unwrap_or_else(|| {
+        let mut last_read = vec![0usize; nodes.len()];
+        for (t, p) in plan.iter().enumerate() {
+            for a in p.reads() {
+                last_read[a as usize] = t;
+            }
+        }
+        for &o in &outputs {
+            last_read[o as usize] = usize::MAX;
+        }
+        let mut free: Vec<u32> = Vec::new();
+        let mut instrs = Vec::with_capacity(plan.len());
+        for (t, p) in plan.iter().enumerate() {
+            // The destination is chosen before this instruction's inputs are freed, so it
+            // never aliases an input (run() relies on this).
+            let dst = free.pop().unwrap_or_else(|| {
                 n_regs += 1;
                 n_regs - 1
             });
-            for a in args.into_iter().flatten() {
+            reg[p.node as usize] = dst;
+            instrs.push(Instr {
+                core: p.core.map(|a| reg[a as usize]),
+                post: p.post,
+                dst,
+            });
+            let mut reads = p.reads();
+            reads.sort_unstable();
+            reads.dedup();
+            for a in reads {
                 let a = a as usize;
-                if last_use[a] == i && !matches!(nodes[a], Node::Var(_) | Node::Const(_)) {
-                    last_use[a] = usize::MAX - 1; // freed once even if used twice here
+                if last_read[a] == t && !matches!(nodes[a], Node::Var(_) | Node::Const(_)) {
                     free.push(reg[a]);
                 }
             }
         }
+        let consts = nodes
+            .iter()
+            .enumerate()
+            .filter_map(|(i, n)| match n {
+                Node::Const(v) => Some((reg[i], *v)),
+                _ => None,
+            })
+            .collect();
+        let out_regs = outputs.iter().map(|&o| reg[o as usize]).collect();
         Program {
             dim,
             nodes,
             outputs,
-            reg,
+            instrs,
+            consts,
+            out_regs,
             n_regs: n_regs as usize,
         }
     }
@@ -203,44 +219,20 @@ impl Program {
         );
         scratch.regs.resize(self.n_regs.max(1), [0.0; LANES]);
         let regs = &mut scratch.regs;
-        for (i, node) in self.nodes.iter().enumerate() {
-            if let Node::Const(v) = node {
-                regs[self.reg[i] as usize] = [*v; LANES];
-            }
+        for &(r, v) in &self.consts {
+            regs[r as usize] = [v; LANES];
         }
         let mut start = 0;
         while start < n {
             let lanes = LANES.min(n - start);
-            for (j, p) in points[start * d..(start + lanes) * d]
-                .chunks_exact(d)
-                .enumerate()
-            {
-                for (v, &x) in p.iter().enumerate() {
-                    regs[v][j] = x;
-                }
-            }
+            load(&mut regs[..d], &points[start * d..(start + lanes) * d]);
             self.run(regs);
-            let rows = &mut out[start * k..(start + lanes) * k];
-            for (o, &node) in self.outputs.iter().enumerate() {
-                let r = &regs[self.reg[node as usize] as usize];
-                for (j, row) in rows.chunks_exact_mut(k).enumerate() {
-                    row[o] = r[j];
-                }
-            }
+            store(
+                regs,
+                &self.out_regs,
+                &mut out[start * k..(start + lanes) * k],
+            );
             start += lanes;
-        }
-    }
-
-    #[inline]
-    fn is_const(&self, node: u32) -> bool {
-        matches!(self.nodes[node as usize], Node::Const(_))
-    }
-
-    #[inline]
-    fn const_value(&self, node: u32) -> f64 {
-        match self.nodes[node as usize] {
-            Node::Const(c) => c,
-            _ => f64::NAN,
         }
     }
 
@@ -248,71 +240,371 @@ impl Program {
     fn run(&self, regs: &mut [[f64; LANES]]) {
         let base = regs.as_mut_ptr();
         let n = regs.len();
-        for (i, node) in self.nodes.iter().enumerate() {
-            let dst = self.reg[i] as usize;
-            let arg = |a: u32| self.reg[a as usize] as usize;
-            let (ra, rb) = match *node {
-                Node::Var(_) | Node::Const(_) => continue,
-                Node::Un(_, a) | Node::PowI(a, _) => (arg(a), arg(a)),
-                Node::Bin(_, a, b) => (arg(a), arg(b)),
-            };
+        for ins in &self.instrs {
+            let dst = ins.dst as usize;
+            let (ra, rb) = ins.core.inputs();
+            let (ra, rb) = (ra as usize, rb as usize);
             assert!(dst < n && ra < n && rb < n && dst != ra && dst != rb);
             // SAFETY: all three indices are in bounds, and the register allocator never gives
             // an instruction a destination equal to one of its inputs, so `out` does not
             // alias `a` or `b` (checked just above).
             let (a, b, out) = unsafe { (&*base.add(ra), &*base.add(rb), &mut *base.add(dst)) };
-            match *node {
-                Node::Un(op, _) => match op {
-                    Op1::Neg => lanes1(out, a, |x| -x),
-                    Op1::Abs => lanes1(out, a, f64::abs),
-                    Op1::Sqrt => lanes1(out, a, f64::sqrt),
-                    _ => lanes1(out, a, |x| op.apply(x)),
+            let post = ins.post;
+            match ins.core {
+                Core::Un(op, _) => match op {
+                    Op1::Neg => apply(out, post, |j| -a[j]),
+                    Op1::Abs => apply(out, post, |j| a[j].abs()),
+                    Op1::Sqrt => apply(out, post, |j| a[j].sqrt()),
+                    _ => apply(out, post, |j| op.apply(a[j])),
                 },
-                Node::Bin(op, _, nb) if self.is_const(nb) => {
-                    let c = self.const_value(nb);
-                    match op {
-                        Op2::Add => lanes1(out, a, |x| x + c),
-                        Op2::Sub => lanes1(out, a, |x| x - c),
-                        Op2::Mul => lanes1(out, a, |x| x * c),
-                        Op2::Div => lanes1(out, a, |x| x / c),
-                        _ => lanes1(out, a, |x| op.apply(x, c)),
+                Core::PowI(_, n) => apply(out, post, |j| powi(a[j], n)),
+                Core::BinK(op, _, c) => match op {
+                    Op2::Add => apply(out, post, |j| a[j] + c),
+                    Op2::Sub => apply(out, post, |j| a[j] - c),
+                    Op2::Mul => apply(out, post, |j| a[j] * c),
+                    Op2::Div => apply(out, post, |j| a[j] / c),
+                    _ => apply(out, post, |j| op.apply(a[j], c)),
+                },
+                Core::KBin(op, c, _) => match op {
+                    Op2::Add => apply(out, post, |j| c + a[j]),
+                    Op2::Sub => apply(out, post, |j| c - a[j]),
+                    Op2::Mul => apply(out, post, |j| c * a[j]),
+                    Op2::Div => apply(out, post, |j| c / a[j]),
+                    _ => apply(out, post, |j| op.apply(c, a[j])),
+                },
+                Core::Bin(op, x, y) => match (x.square, y.square) {
+                    (false, false) => bin::<false, false>(out, a, b, op, post),
+                    (true, false) => bin::<true, false>(out, a, b, op, post),
+                    (false, true) => bin::<false, true>(out, a, b, op, post),
+                    (true, true) => bin::<true, true>(out, a, b, op, post),
+                },
+            }
+        }
+    }
+}
+
+/// An operand of a fused binary operation: a register, squared first when `square` is set.
+#[derive(Clone, Copy, Debug)]
+struct Operand {
+    at: u32,
+    square: bool,
+}
+
+/// The operation of one instruction, over node indices while planning and registers after.
+#[derive(Clone, Copy, Debug)]
+enum Core {
+    Un(Op1, u32),
+    /// a^n for n other than 2 (a^2 is a product, or a squared operand of its reader).
+    PowI(u32, i32),
+    /// a op c
+    BinK(Op2, u32, f64),
+    /// c op a
+    KBin(Op2, f64, u32),
+    /// a op b, either operand squared first
+    Bin(Op2, Operand, Operand),
+}
+
+impl Core {
+    fn inputs(&self) -> (u32, u32) {
+        match *self {
+            Core::Un(_, a) | Core::PowI(a, _) | Core::BinK(_, a, _) | Core::KBin(_, _, a) => (a, a),
+            Core::Bin(_, x, y) => (x.at, y.at),
+        }
+    }
+
+    fn map(self, f: impl Fn(u32) -> u32) -> Core {
+        match self {
+            Core::Un(op, a) => Core::Un(op, f(a)),
+            Core::PowI(a, n) => Core::PowI(f(a), n),
+            Core::BinK(op, a, c) => Core::BinK(op, f(a), c),
+            Core::KBin(op, c, a) => Core::KBin(op, c, f(a)),
+            Core::Bin(op, x, y) => Core::Bin(
+                op,
+                Operand {
+                    at: f(x.at),
+                    square: x.square,
+                },
+                Operand {
+                    at: f(y.at),
+                    square: y.square,
+                },
+            ),
+        }
+    }
+}
+
+/// A constant step applied to an instruction's result before it is stored: r + c, r - c or
+/// r * c. Fusing it changes no rounding: the same operations run in the same order.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Post {
+    None,
+    Add(f64),
+    Sub(f64),
+    Mul(f64),
+}
+
+/// One instruction: `dst = post(core(inputs))` over all lanes.
+#[derive(Clone, Copy, Debug)]
+struct Instr {
+    core: Core,
+    post: Post,
+    dst: u32,
+}
+
+/// One planned instruction: the node whose value it produces, and what it computes from
+/// earlier nodes.
+struct Planned {
+    node: u32,
+    core: Core,
+    post: Post,
+}
+
+impl Planned {
+    fn reads(&self) -> Vec<u32> {
+        let (a, b) = self.core.inputs();
+        vec![a, b]
+    }
+}
+
+/// Groups the DAG's operations into instructions. A square a^2 read once is folded into the
+/// binary operation that reads it, and a following `+ c`, `- c` or `* c` into the instruction
+/// whose single-use result it takes; this cuts the passes over the lane registers (the cost of
+/// an interpreter) without changing a single rounding.
+fn fuse(nodes: &[Node], outputs: &[u32]) -> Vec<Planned> {
+    let mut uses = vec![0usize; nodes.len()];
+    for n in nodes {
+        match *n {
+            Node::Un(_, a) | Node::PowI(a, _) => uses[a as usize] += 1,
+            Node::Bin(_, a, b) => {
+                uses[a as usize] += 1;
+                uses[b as usize] += 1;
+            }
+            _ => {}
+        }
+    }
+    for &o in outputs {
+        uses[o as usize] += 2;
+    }
+    let is_const = |i: u32| matches!(nodes[i as usize], Node::Const(_));
+    let const_of = |i: u32| match nodes[i as usize] {
+        Node::Const(c) => c,
+        _ => f64::NAN,
+    };
+    let single_square = |i: u32| match nodes[i as usize] {
+        Node::PowI(a, 2) if uses[i as usize] == 1 => Some(a),
+        _ => None,
+    };
+    // Where each node's value is produced: the index of its planned instruction.
+    let mut planned_at: Vec<Option<usize>> = vec![None; nodes.len()];
+    let mut plan: Vec<Planned> = Vec::new();
+    // A single-use square read by a non-constant +, - or * is folded into that reader and
+    // never materialised.
+    let mut folded = vec![false; nodes.len()];
+    for n in nodes {
+        if let Node::Bin(Op2::Add | Op2::Sub | Op2::Mul, a, b) = *n {
+            if !is_const(a) && !is_const(b) {
+                for x in [a, b] {
+                    if single_square(x).is_some() {
+                        folded[x as usize] = true;
                     }
                 }
-                Node::Bin(op, na, _) if self.is_const(na) => {
-                    let c = self.const_value(na);
-                    match op {
-                        Op2::Add => lanes1(out, b, |y| c + y),
-                        Op2::Sub => lanes1(out, b, |y| c - y),
-                        Op2::Mul => lanes1(out, b, |y| c * y),
-                        Op2::Div => lanes1(out, b, |y| c / y),
-                        _ => lanes1(out, b, |y| op.apply(c, y)),
+            }
+        }
+    }
+    for (i, n) in nodes.iter().enumerate() {
+        let id = i as u32;
+        if folded[i] {
+            continue;
+        }
+        let core = match *n {
+            Node::Var(_) | Node::Const(_) => continue,
+            Node::Un(op, a) => Core::Un(op, a),
+            Node::PowI(a, 2) => Core::Bin(
+                Op2::Mul,
+                Operand {
+                    at: a,
+                    square: false,
+                },
+                Operand {
+                    at: a,
+                    square: false,
+                },
+            ),
+            Node::PowI(a, n) => Core::PowI(a, n),
+            Node::Bin(op, a, b) if is_const(b) => {
+                let c = const_of(b);
+                // Fold `r op c` into the instruction producing r when r is read only here.
+                if let (Some(t), true) = (planned_at[a as usize], uses[a as usize] == 1) {
+                    if plan[t].post == Post::None {
+                        let post = match op {
+                            Op2::Add => Some(Post::Add(c)),
+                            Op2::Sub => Some(Post::Sub(c)),
+                            Op2::Mul => Some(Post::Mul(c)),
+                            _ => None,
+                        };
+                        if let Some(post) = post {
+                            plan[t].post = post;
+                            plan[t].node = id;
+                            planned_at[a as usize] = None;
+                            planned_at[i] = Some(t);
+                            continue;
+                        }
                     }
                 }
-                Node::Bin(op, _, _) => match op {
-                    Op2::Add => lanes2(out, a, b, |x, y| x + y),
-                    Op2::Sub => lanes2(out, a, b, |x, y| x - y),
-                    Op2::Mul => lanes2(out, a, b, |x, y| x * y),
-                    Op2::Div => lanes2(out, a, b, |x, y| x / y),
-                    _ => lanes2(out, a, b, |x, y| op.apply(x, y)),
-                },
-                Node::PowI(_, 2) => lanes1(out, a, |x| x * x),
-                Node::PowI(_, n) => lanes1(out, a, |x| powi(x, n)),
-                _ => {}
+                Core::BinK(op, a, c)
+            }
+            Node::Bin(op, a, b) if is_const(a) => Core::KBin(op, const_of(a), b),
+            Node::Bin(op, a, b) => {
+                let operand = |x: u32| {
+                    if matches!(op, Op2::Add | Op2::Sub | Op2::Mul) && folded[x as usize] {
+                        Operand {
+                            at: single_square(x).expect("folded squares are single-use"),
+                            square: true,
+                        }
+                    } else {
+                        Operand {
+                            at: x,
+                            square: false,
+                        }
+                    }
+                };
+                Core::Bin(op, operand(a), operand(b))
+            }
+        };
+        planned_at[i] = Some(plan.len());
+        plan.push(Planned {
+            node: id,
+            core,
+            post: Post::None,
+        });
+    }
+    plan
+}
+
+/// Transposes rows of points into the variable registers (one register per coordinate).
+fn load(vars: &mut [[f64; LANES]], rows: &[f64]) {
+    /// The same with the dimension known at compile time, so the inner loop unrolls.
+    fn fixed<const D: usize>(vars: &mut [[f64; LANES]], rows: &[f64]) {
+        let vars: &mut [[f64; LANES]; D] = vars.try_into().expect("D registers");
+        for (j, p) in rows.chunks_exact(D).enumerate().take(LANES) {
+            for v in 0..D {
+                vars[v][j] = p[v];
+            }
+        }
+    }
+    match vars.len() {
+        1 => fixed::<1>(vars, rows),
+        2 => fixed::<2>(vars, rows),
+        3 => fixed::<3>(vars, rows),
+        4 => fixed::<4>(vars, rows),
+        5 => fixed::<5>(vars, rows),
+        6 => fixed::<6>(vars, rows),
+        7 => fixed::<7>(vars, rows),
+        8 => fixed::<8>(vars, rows),
+        d => {
+            for (j, p) in rows.chunks_exact(d).enumerate() {
+                for (v, &x) in p.iter().enumerate() {
+                    vars[v][j] = x;
+                }
+            }
+        }
+    }
+}
+
+/// Transposes the output registers `outs` into rows of `outs.len()` values.
+fn store(regs: &[[f64; LANES]], outs: &[u32], rows: &mut [f64]) {
+    /// The same with the output count known at compile time.
+    fn fixed<const K: usize>(regs: &[[f64; LANES]], outs: &[u32], rows: &mut [f64]) {
+        let src: [&[f64; LANES]; K] = std::array::from_fn(|o| &regs[outs[o] as usize]);
+        for (j, row) in rows.chunks_exact_mut(K).enumerate().take(LANES) {
+            for o in 0..K {
+                row[o] = src[o][j];
+            }
+        }
+    }
+    match outs.len() {
+        1 => fixed::<1>(regs, outs, rows),
+        2 => fixed::<2>(regs, outs, rows),
+        3 => fixed::<3>(regs, outs, rows),
+        4 => fixed::<4>(regs, outs, rows),
+        k => {
+            for (o, &r) in outs.iter().enumerate() {
+                let r = &regs[r as usize];
+                for (j, row) in rows.chunks_exact_mut(k).enumerate() {
+                    row[o] = r[j];
+                }
             }
         }
     }
 }
 
 #[inline(always)]
-fn lanes1(out: &mut [f64; LANES], a: &[f64; LANES], f: impl Fn(f64) -> f64) {
-    for j in 0..LANES {
-        out[j] = f(a[j]);
+fn apply(out: &mut [f64; LANES], post: Post, f: impl Fn(usize) -> f64) {
+    match post {
+        Post::None => (0..LANES).for_each(|j| out[j] = f(j)),
+        Post::Add(c) => (0..LANES).for_each(|j| out[j] = f(j) + c),
+        Post::Sub(c) => (0..LANES).for_each(|j| out[j] = f(j) - c),
+        Post::Mul(c) => (0..LANES).for_each(|j| out[j] = f(j) * c),
     }
 }
 
 #[inline(always)]
-fn lanes2(out: &mut [f64; LANES], a: &[f64; LANES], b: &[f64; LANES], f: impl Fn(f64, f64) -> f64) {
-    for j in 0..LANES {
-        out[j] = f(a[j], b[j]);
+fn operand<const SQUARE: bool>(a: &[f64; LANES], j: usize) -> f64 {
+    if SQUARE {
+        a[j] * a[j]
+    } else {
+        a[j]
+    }
+}
+
+#[inline(always)]
+fn bin<const SA: bool, const SB: bool>(
+    out: &mut [f64; LANES],
+    a: &[f64; LANES],
+    b: &[f64; LANES],
+    op: Op2,
+    post: Post,
+) {
+    let x = |j| operand::<SA>(a, j);
+    let y = |j| operand::<SB>(b, j);
+    match op {
+        Op2::Add => apply(out, post, |j| x(j) + y(j)),
+        Op2::Sub => apply(out, post, |j| x(j) - y(j)),
+        Op2::Mul => apply(out, post, |j| x(j) * y(j)),
+        Op2::Div => apply(out, post, |j| x(j) / y(j)),
+        _ => apply(out, post, |j| op.apply(x(j), y(j))),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::expr::ast::Expr;
+
+    fn square(i: usize) -> Expr {
+        Expr::powi(Expr::Var(i), 2)
+    }
+
+    #[test]
+    fn squares_and_constant_steps_fuse_into_one_instruction() {
+        // x^2 + y^2 - 1: one pass over the lanes instead of four.
+        let e = Expr::Bin(
+            Op2::Sub,
+            Box::new(Expr::Bin(
+                Op2::Add,
+                Box::new(square(0)),
+                Box::new(square(1)),
+            )),
+            Box::new(Expr::Num(1.0)),
+        );
+        let p = Program::compile(std::slice::from_ref(&e), 2);
+        assert_eq!(p.instrs.len(), 1);
+        let mut out = [0.0];
+        p.eval(&[0.5, 2.0], &mut out);
+        assert_eq!(out[0], 0.5 * 0.5 + 2.0 * 2.0 - 1.0);
+        // A square read twice is computed once and not folded.
+        let twice = Expr::Bin(Op2::Mul, Box::new(square(0)), Box::new(square(0)));
+        let p = Program::compile(&[twice], 1);
+        assert_eq!(p.instrs.len(), 2);
     }
 }
