@@ -7,6 +7,8 @@
 //! - [`expr`]: the equation language: parser, derivatives, batch evaluation, WGSL emission,
 //!   spec files and presets.
 //! - [`trace`]: manifold tracing and the exhaustive scan, behind the [`trace::Oracle`] trait.
+//! - [`gpu`]: the GPU oracle (wgpu, WGSL). [`complex`]: the cell complex and its topology.
+//!   [`export`]: files and pictures. [`bench`]: the measurements of `isomesh bench`.
 //!
 //! ```
 //! use isomesh::expr::{preset, ImplicitFunction};
@@ -26,6 +28,7 @@
 //! assert_eq!(s.facets().len(), 4);
 //! ```
 
+pub mod bench;
 pub mod complex;
 pub mod cpu;
 pub mod error;

@@ -6,6 +6,7 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
+use cli::bench::BenchArgs;
 use cli::trace::TraceArgs;
 use isomesh::expr::PRESETS;
 use isomesh::memory::CountingAlloc;
@@ -31,6 +32,9 @@ enum Command {
     /// Trace M = f^-1(0) from a spec or preset: the crossed k-simplices and a point of M on
     /// each.
     Trace(Box<TraceArgs>),
+    /// Benchmark the CPU oracle against the GPU oracle on the same batches, and whole traces
+    /// of the reference cases on both backends.
+    Bench(Box<BenchArgs>),
     /// List the built-in manifolds and their parameters.
     Presets,
     /// List the GPU adapters wgpu finds, with their features.
@@ -58,6 +62,7 @@ fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
         Some(Command::Trace(args)) => cli::trace::run(&args),
+        Some(Command::Bench(args)) => cli::bench::run(&args),
         Some(Command::Info) => {
             let list = isomesh::gpu::adapters();
             if list.is_empty() {

@@ -432,3 +432,82 @@ fn memory_limit_stops_and_keeps_what_was_traced() {
         .count();
     assert_eq!(rows, n + 1);
 }
+
+#[test]
+fn bench_compares_the_oracles_and_traces_and_plots() {
+    let dir = scratch("bench");
+    let o = isomesh(&dir, &["info"]);
+    let gpu = !String::from_utf8_lossy(&o.stdout).contains("no GPU adapter");
+    assert!(gpu || std::env::var_os("ISOMESH_REQUIRE_GPU").is_none());
+    let backend = if gpu { "gpu" } else { "cpu" };
+    let o = isomesh(
+        &dir,
+        &[
+            "bench",
+            "--k",
+            "1,3",
+            "--count",
+            "3000",
+            "--repeats",
+            "1",
+            "--traces",
+            "quick",
+            "--backend",
+            backend,
+            "--json",
+            "b.json",
+            "--png",
+            "b.png",
+        ],
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let b = report(&dir, "b.json");
+    let oracle = b["oracle"].as_array().unwrap();
+    // One CPU row per k, plus one per GPU precision.
+    let per_k = if gpu { oracle.len() / 2 } else { 1 };
+    assert_eq!(oracle.len(), 2 * per_k);
+    for row in oracle {
+        assert!(row["simplices_per_s"].as_f64().unwrap() > 0.0, "{row}");
+        if row["oracle"] != "cpu" {
+            assert_eq!(row["same_verdicts"], true, "{row}");
+            for key in ["host_ns", "upload_ns", "compute_ns", "readback_ns"] {
+                assert!(row[key].as_f64().unwrap() > 0.0, "{key}: {row}");
+            }
+        }
+    }
+    let traces = b["traces"].as_array().unwrap();
+    assert_eq!(
+        traces.len(),
+        4,
+        "the quick set: cases up to 200,000 simplices"
+    );
+    for row in traces {
+        let (n, want) = (
+            row["simplices"].as_f64().unwrap(),
+            row["reference_simplices"].as_f64().unwrap(),
+        );
+        assert!((n - want).abs() <= 0.03 * want, "{row}");
+        assert!(row["cpu_speedup"].as_f64().unwrap() > 0.0);
+        if gpu {
+            assert_eq!(row["same_sample"], true, "{row}");
+        }
+    }
+    let png = std::fs::read(dir.join("b.png")).unwrap();
+    let decoder = png::Decoder::new(std::io::Cursor::new(png));
+    let info = decoder.read_info().unwrap();
+    assert_eq!(
+        (info.info().width, info.info().height),
+        (1400, 480),
+        "two panels"
+    );
+    // Nonsense is refused with a message.
+    for args in [
+        &["bench", "--k", "99"][..],
+        &["bench", "--k", "0", "--traces", "none", "--png", "x.png"],
+        &["bench", "--count", "0"],
+    ] {
+        let o = isomesh(&dir, args);
+        assert!(!o.status.success(), "{args:?}");
+        assert!(!stderr(&o).contains("panicked"), "{}", stderr(&o));
+    }
+}

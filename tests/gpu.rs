@@ -1,5 +1,6 @@
-//! The GPU oracle against the CPU: the solve shader against its CPU twin, a stress test of
-//! badly conditioned simplices, and whole traces giving the same S and the same topology.
+//! The GPU oracle against the CPU: the solve and vertex shaders against their CPU twins, a
+//! stress test of badly conditioned simplices, and whole traces giving the same S and the
+//! same topology.
 //! Runs on any adapter wgpu finds (lavapipe in CI); skipped, saying why, when there is none.
 
 use isomesh::complex::Complex;
@@ -223,6 +224,60 @@ fn the_solve_shader_matches_its_cpu_twin() {
             // at the margin.
             assert!(differ <= count / 10_000, "{differ} verdicts differ");
             assert!(worst <= 1e-12, "lambda differs by {worst:e}");
+        }
+    }
+}
+
+#[test]
+fn the_vertex_shader_matches_its_cpu_twin() {
+    use isomesh::cpu::vertices::eval_lattice;
+    use isomesh::expr::{ImplicitFunction, PRESETS};
+    let Some(g) = gpu() else { return };
+    for info in PRESETS {
+        let p = problem(info.name, &[]);
+        let (d, k) = (p.dim(), p.system.codim());
+        let tri = p.triangulation.build(d).unwrap();
+        // Lattice vertices around the seed: the vertex of its simplex, plus random offsets.
+        let base = tri.locate(&p.seeds[0]).unwrap().base().to_vec();
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(d as u64);
+        let lattice: Vec<i32> = (0..3000 * d)
+            .map(|i| base[i % d] + rng.random_range(-12..=12))
+            .collect();
+        let n = lattice.len() / d;
+        let mut twin = vec![0.0; n * k];
+        let (a, b) = tri.affine_map();
+        eval_lattice(p.system.values(), &a, &b, &lattice, &mut twin);
+        // The twin computes what tracing computes, up to the cheaper unrotated maps.
+        let mut traced = vec![0.0; n * k];
+        CpuOracle::new(&p.system)
+            .eval_vertices(&tri, &lattice, &mut traced)
+            .unwrap();
+        for (t, c) in twin.iter().zip(&traced) {
+            assert!(
+                (t - c).abs() <= 1e-12 * (1.0 + c.abs()),
+                "{}: {t} vs {c}",
+                info.name
+            );
+        }
+        for prec in precisions(&g) {
+            let o = GpuOracle::new(g.clone(), &p.system, prec).unwrap();
+            let got = o.eval_stage(&tri, &lattice).unwrap();
+            assert_eq!(got.len(), twin.len());
+            let tol = match o.precision() {
+                Precision::F64 => 1e-13,
+                Precision::F32 => 1e-4,
+            };
+            let worst = got
+                .iter()
+                .zip(&twin)
+                .map(|(g, c)| (g - c).abs() / (1.0 + c.abs()))
+                .fold(0.0, f64::max);
+            assert!(
+                worst <= tol,
+                "{} {:?}: {worst:.2e}",
+                info.name,
+                o.precision()
+            );
         }
     }
 }

@@ -1,5 +1,6 @@
-//! The command line's pieces: loading a problem, `check`, `trace`.
+//! The command line's pieces: loading a problem, `check`, `trace`, `bench`.
 
+pub mod bench;
 pub mod trace;
 
 use std::path::PathBuf;

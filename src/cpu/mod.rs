@@ -1,4 +1,6 @@
-//! The CPU side: batch evaluation of compiled expressions and the intersection test.
+//! The CPU side: batch evaluation of compiled expressions, the intersection test, and the
+//! twin of the GPU's vertex shader.
 
 pub mod decide;
 pub mod program;
+pub mod vertices;

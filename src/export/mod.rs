@@ -11,7 +11,9 @@ use crate::trace::Sample;
 
 pub mod mesh;
 pub mod picture;
+pub mod plot;
 pub mod projection;
+pub mod raster;
 
 pub use mesh::{write_mesh, Mesh, MeshFormat};
 pub use projection::{Projection, View};

@@ -4,10 +4,7 @@
 
 use std::path::Path;
 
-use font8x8::UnicodeFonts;
-
 use super::mesh::Mesh;
-use super::write_atomic;
 use crate::error::{Error, Result};
 
 /// An RGB picture.
@@ -232,46 +229,12 @@ impl Picture {
         }
     }
 
-    /// Writes `text` in an 8x8 bitmap font, with its top-left corner at (x, y).
     fn text(&mut self, x: usize, y: usize, text: &str, col: [u8; 3]) {
-        let mut cx = x;
-        for ch in text.chars() {
-            let glyph = font8x8::BASIC_FONTS
-                .get(ch)
-                .or_else(|| font8x8::BASIC_FONTS.get('?'));
-            if let Some(rows) = glyph {
-                for (r, bits) in rows.iter().enumerate() {
-                    for c in 0..8 {
-                        if bits & (1 << c) != 0 {
-                            let (px, py) = (cx + c, y + r * 2);
-                            for dy in 0..2 {
-                                if px < self.width && py + dy < self.height {
-                                    let i = (py + dy) * self.width + px;
-                                    self.rgb[i * 3..i * 3 + 3].copy_from_slice(&col);
-                                }
-                            }
-                        }
-                    }
-                }
-            }
-            cx += 9;
-            if cx + 8 >= self.width {
-                break;
-            }
-        }
+        super::raster::text(&mut self.rgb, self.width, self.height, (x, y), text, col);
     }
 
     /// Encodes the picture as PNG into `path` (through a temporary file).
     pub fn write_png(&self, path: &Path) -> Result<()> {
-        write_atomic(path, |w| {
-            let mut enc = png::Encoder::new(w, self.width as u32, self.height as u32);
-            enc.set_color(png::ColorType::Rgb);
-            enc.set_depth(png::BitDepth::Eight);
-            let mut writer = enc.write_header().map_err(std::io::Error::other)?;
-            writer
-                .write_image_data(&self.rgb)
-                .map_err(std::io::Error::other)?;
-            writer.finish().map_err(std::io::Error::other)
-        })
+        super::raster::write_png(path, self.width, self.height, &self.rgb)
     }
 }

@@ -84,7 +84,8 @@ pub fn adapters() -> Vec<AdapterSummary> {
     compute_adapters().iter().map(AdapterSummary::of).collect()
 }
 
-/// An open device for compute.
+/// An open device for compute; clones share the device.
+#[derive(Clone)]
 pub struct Gpu {
     /// The device.
     pub device: wgpu::Device,

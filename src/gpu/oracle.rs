@@ -6,21 +6,27 @@
 //! only certain misses, so every crossing point is computed by the CPU in f64. Everything else
 //! is re-decided on the CPU by [`Decider`](crate::cpu::decide::Decider), exactly where needed.
 //!
+//! A batch goes through in chunks, pipelined: while the device solves one chunk, the host
+//! packs the next and settles the previous one.
+//!
 //! Vertex values are computed on the CPU (each lattice vertex once per trace): a GPU may
 //! contract a * b + c into a fused multiply-add, which changes f by an ulp, and S is defined
 //! by the CPU's values. With the same values, the f64 shader's lambda equals the CPU's where
 //! the device rounds division and does not contract (lavapipe: bit-identical); elsewhere
-//! points may differ by a few ulps, never the decisions.
+//! points may differ by a few ulps, never the decisions. The vertex shader
+//! ([`GpuOracle::eval_stage`]) exists and matches its CPU twin to a few ulps, which is why
+//! tracing does not take its values.
 
 use std::borrow::Cow;
-use std::sync::atomic::{AtomicU64, Ordering};
+use std::ops::Range;
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::Mutex;
 use std::time::Instant;
 
 use rayon::prelude::*;
 
 use super::context::Gpu;
-use super::wgsl::{validate, Precision};
+use super::wgsl::{eval_shader, validate, Precision};
 use crate::cpu::decide::{filter_verdict, scaled_rows, Status};
 use crate::error::{Error, Result};
 use crate::expr::ImplicitFunction;
@@ -35,6 +41,8 @@ const BOUND_FACTOR: f64 = 16.0;
 const MAX_RELATIVE_BOUND: f64 = 0.125;
 /// Threads per workgroup in both shaders.
 const WORKGROUP: u32 = 64;
+/// Simplices per pipelined chunk of a decision batch.
+const PIPELINE_CHUNK: usize = 1 << 17;
 /// Workgroups per dispatch row (the limit per dimension).
 const MAX_GROUPS: u32 = 65_535;
 
@@ -49,8 +57,18 @@ pub struct GpuStats {
     pub solved: u64,
     /// Of those, decided again on the CPU.
     pub rechecked: u64,
-    /// Seconds in GPU round trips (upload, compute, readback).
+    /// Seconds the host spent submitting to and waiting on the device.
     pub gpu_s: f64,
+    /// Seconds of host work around the shader: the cheap filters, packing rows, and
+    /// re-deciding uncertain simplices on the CPU (overlapped with the device's work unless
+    /// phased).
+    pub host_s: f64,
+    /// Phased runs only ([`GpuOracle::set_phased`]): seconds uploading inputs,
+    pub upload_s: f64,
+    /// running the shader,
+    pub compute_s: f64,
+    /// and copying results back to the host.
+    pub readback_s: f64,
 }
 
 /// The solve shader for k-simplices in precision `p`, validated by naga.
@@ -84,9 +102,17 @@ pub struct GpuOracle<'f> {
     k: usize,
     precision: Precision,
     solve: wgpu::ComputePipeline,
+    /// The vertex shader, when f is written in the language.
+    eval: Option<wgpu::ComputePipeline>,
     solved: AtomicU64,
     rechecked: AtomicU64,
     gpu_ns: AtomicU64,
+    host_ns: AtomicU64,
+    upload_ns: AtomicU64,
+    compute_ns: AtomicU64,
+    readback_ns: AtomicU64,
+    /// Split each round trip into timed, synchronous steps (for benchmarks).
+    phased: AtomicBool,
     /// Buffers kept across calls, by role; they grow when a batch needs more.
     buffers: Mutex<Vec<Option<wgpu::Buffer>>>,
 }
@@ -112,15 +138,29 @@ impl<'f> GpuOracle<'f> {
         };
         let k = f.codim();
         let solve = pipeline(&gpu, &solve_shader(k, precision)?, "solve")?;
+        let eval = match f.system() {
+            Some(s) => Some(pipeline(
+                &gpu,
+                &eval_shader(s.values(), precision)?,
+                "eval_vertices",
+            )?),
+            None => None,
+        };
         Ok(GpuOracle {
             gpu,
             f,
             k,
             precision,
             solve,
+            eval,
             solved: AtomicU64::new(0),
             rechecked: AtomicU64::new(0),
             gpu_ns: AtomicU64::new(0),
+            host_ns: AtomicU64::new(0),
+            upload_ns: AtomicU64::new(0),
+            compute_ns: AtomicU64::new(0),
+            readback_ns: AtomicU64::new(0),
+            phased: AtomicBool::new(false),
             buffers: Mutex::new(Vec::new()),
         })
     }
@@ -137,11 +177,37 @@ impl<'f> GpuOracle<'f> {
 
     /// What the oracle did so far.
     pub fn stats(&self) -> GpuStats {
+        let secs = |c: &AtomicU64| c.load(Ordering::Relaxed) as f64 * 1e-9;
         GpuStats {
             solved: self.solved.load(Ordering::Relaxed),
             rechecked: self.rechecked.load(Ordering::Relaxed),
-            gpu_s: self.gpu_ns.load(Ordering::Relaxed) as f64 * 1e-9,
+            gpu_s: secs(&self.gpu_ns),
+            host_s: secs(&self.host_ns),
+            upload_s: secs(&self.upload_ns),
+            compute_s: secs(&self.compute_ns),
+            readback_s: secs(&self.readback_ns),
         }
+    }
+
+    /// Zeroes the counters of [`GpuOracle::stats`].
+    pub fn reset_stats(&self) {
+        for c in [
+            &self.solved,
+            &self.rechecked,
+            &self.gpu_ns,
+            &self.host_ns,
+            &self.upload_ns,
+            &self.compute_ns,
+            &self.readback_ns,
+        ] {
+            c.store(0, Ordering::Relaxed);
+        }
+    }
+
+    /// With `on`, every round trip runs as three synchronous, timed steps (upload, compute,
+    /// readback: see [`GpuStats`]) and nothing overlaps; for benchmarks. Results are the same.
+    pub fn set_phased(&self, on: bool) {
+        self.phased.store(on, Ordering::Relaxed);
     }
 
     /// Items per dispatch so that `bytes_per_item` fits one storage binding.
@@ -150,15 +216,17 @@ impl<'f> GpuOracle<'f> {
         (max / bytes_per_item.max(1)).clamp(1, 1 << 22)
     }
 
-    /// Runs `pipeline` over `count` items with `input` bound at 0 and outputs of the given
-    /// byte sizes at 1.., returning the outputs' bytes.
-    fn run(
+    /// Uploads `input`, runs `pipeline` over `count` items with `input` bound at 0 and
+    /// outputs of the given byte sizes at 1.., and starts copying the outputs back; the
+    /// device works while the caller does other things, until [`GpuOracle::finish`].
+    fn submit(
         &self,
         pipeline: &wgpu::ComputePipeline,
         input: &[u8],
         count: usize,
         outputs: &[usize],
-    ) -> Result<Vec<Vec<u8>>> {
+    ) -> Result<Pending> {
+        let phased = self.phased.load(Ordering::Relaxed);
         let mut pool = self
             .buffers
             .lock()
@@ -177,11 +245,16 @@ impl<'f> GpuOracle<'f> {
         if !input.is_empty() {
             self.gpu.queue.write_buffer(&inbuf, 0, input);
         }
-        let outs: Vec<(wgpu::Buffer, wgpu::Buffer, u64)> = outputs
+        if phased {
+            self.gpu.queue.submit([]);
+            self.wait()?;
+            add_time(&self.upload_ns, started);
+        }
+        let outs: Vec<(wgpu::Buffer, wgpu::Buffer, u64, usize)> = outputs
             .iter()
             .enumerate()
-            .map(|(i, &size)| {
-                let size = (size.max(4) as u64).next_multiple_of(4);
+            .map(|(i, &want)| {
+                let size = (want.max(4) as u64).next_multiple_of(4);
                 let out = reuse(
                     dev,
                     &mut pool,
@@ -196,7 +269,7 @@ impl<'f> GpuOracle<'f> {
                     size,
                     wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
                 );
-                (out, staging, size)
+                (out, staging, size, want)
             })
             .collect();
         let groups = (count as u32).div_ceil(WORKGROUP).max(1);
@@ -221,7 +294,7 @@ impl<'f> GpuOracle<'f> {
             binding: 0,
             resource: inbuf.as_entire_binding(),
         }];
-        for (i, (out, _, _)) in outs.iter().enumerate() {
+        for (i, (out, _, _, _)) in outs.iter().enumerate() {
             entries.push(wgpu::BindGroupEntry {
                 binding: i as u32 + 1,
                 resource: out.as_entire_binding(),
@@ -246,22 +319,44 @@ impl<'f> GpuOracle<'f> {
             pass.set_bind_group(0, &bind, &[]);
             pass.dispatch_workgroups(gx, gy, 1);
         }
-        for (out, staging, size) in &outs {
+        if phased {
+            let t = Instant::now();
+            self.gpu.queue.submit([enc.finish()]);
+            self.wait()?;
+            add_time(&self.compute_ns, t);
+            enc = dev.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: None });
+        }
+        for (out, staging, size, _) in &outs {
             enc.copy_buffer_to_buffer(out, 0, staging, 0, *size);
         }
         self.gpu.queue.submit([enc.finish()]);
-        let mut results = Vec::with_capacity(outs.len());
-        for ((_, staging, size), &want) in outs.iter().zip(outputs) {
-            let slice = staging.slice(..*size);
+        let mut maps = Vec::with_capacity(outs.len());
+        for (_, staging, size, want) in outs {
             let (tx, rx) = std::sync::mpsc::channel();
-            slice.map_async(wgpu::MapMode::Read, move |r| {
-                let _ = tx.send(r);
-            });
-            dev.poll(wgpu::PollType::wait_indefinitely())
-                .map_err(|e| Error::Gpu(format!("waiting for the device: {e}")))?;
+            staging
+                .slice(..size)
+                .map_async(wgpu::MapMode::Read, move |r| {
+                    let _ = tx.send(r);
+                });
+            maps.push((staging, size, want, rx));
+        }
+        add_time(&self.gpu_ns, started);
+        Ok(Pending {
+            maps,
+            readback_from: Instant::now(),
+        })
+    }
+
+    /// Waits for a submitted round trip and returns its outputs' bytes.
+    fn finish(&self, pending: Pending) -> Result<Vec<Vec<u8>>> {
+        let started = Instant::now();
+        self.wait()?;
+        let mut results = Vec::with_capacity(pending.maps.len());
+        for (staging, size, want, rx) in pending.maps {
             rx.recv()
                 .map_err(|_| Error::Gpu("the readback was dropped".into()))?
                 .map_err(|e| Error::Gpu(format!("readback: {e}")))?;
+            let slice = staging.slice(..size);
             let view = slice
                 .get_mapped_range()
                 .map_err(|e| Error::Gpu(format!("readback: {e}")))?;
@@ -269,9 +364,20 @@ impl<'f> GpuOracle<'f> {
             drop(view);
             staging.unmap();
         }
-        self.gpu_ns
-            .fetch_add(started.elapsed().as_nanos() as u64, Ordering::Relaxed);
+        add_time(&self.gpu_ns, started);
+        if self.phased.load(Ordering::Relaxed) {
+            add_time(&self.readback_ns, pending.readback_from);
+        }
         Ok(results)
+    }
+
+    /// Blocks until the device has done everything submitted.
+    fn wait(&self) -> Result<()> {
+        self.gpu
+            .device
+            .poll(wgpu::PollType::wait_indefinitely())
+            .map(|_| ())
+            .map_err(|e| Error::Gpu(format!("waiting for the device: {e}")))
     }
 
     fn encode_reals(&self, v: &[f64]) -> Vec<u8> {
@@ -300,6 +406,23 @@ impl<'f> GpuOracle<'f> {
             Precision::F32 => 4,
         }
     }
+}
+
+/// A round trip on its way: the staging buffers being mapped, with their sizes, the bytes
+/// wanted from each, and the channel that says when the mapping is done.
+struct Pending {
+    #[allow(clippy::type_complexity)]
+    maps: Vec<(
+        wgpu::Buffer,
+        u64,
+        usize,
+        std::sync::mpsc::Receiver<std::result::Result<(), wgpu::BufferAsyncError>>,
+    )>,
+    readback_from: Instant,
+}
+
+fn add_time(counter: &AtomicU64, since: Instant) {
+    counter.fetch_add(since.elapsed().as_nanos() as u64, Ordering::Relaxed);
 }
 
 /// The pooled buffer in `slot`, replaced by a larger one when it holds fewer than `size`
@@ -362,16 +485,64 @@ impl GpuOracle<'_> {
         let mut lam = Vec::with_capacity(m * n);
         for part in packed.chunks(chunk * per) {
             let c = part.len() / per;
-            let res = self.run(
+            let pending = self.submit(
                 &self.solve,
                 &self.encode_reals(part),
                 c,
                 &[c * n * rs, c * 4],
             )?;
+            let res = self.finish(pending)?;
             lam.extend(self.decode_reals(&res[0]));
             flags.extend(bytemuck::pod_collect_to_vec::<u8, u32>(&res[1]));
         }
         Ok((flags, lam))
+    }
+
+    /// The vertex shader alone (`shaders/eval_vertices.wgsl`), the twin of
+    /// [`eval_lattice`](crate::cpu::vertices::eval_lattice): f at the lattice vertices
+    /// `lattice` (rows of d) of `tri`, mapped to R^d inside the shader; rows of k values.
+    /// Tracing does not use it (see the module documentation): it is the building block of
+    /// GPU-side scans, and measured by `isomesh bench`.
+    pub fn eval_stage(&self, tri: &Triangulation, lattice: &[i32]) -> Result<Vec<f64>> {
+        let Some(eval) = &self.eval else {
+            return Err(Error::Gpu(
+                "the GPU evaluates only functions written in the equation language".into(),
+            ));
+        };
+        let (d, k) = (tri.dim(), self.k);
+        if self.f.ambient_dim() != d {
+            return Err(Error::DimensionMismatch(format!(
+                "the triangulation is in R^{d}, f in R^{}",
+                self.f.ambient_dim()
+            )));
+        }
+        let exact = match self.precision {
+            Precision::F32 => 1 << 24,
+            Precision::F64 => i32::MAX,
+        };
+        if lattice.iter().any(|&u| u.unsigned_abs() > exact as u32) {
+            return Err(Error::Gpu(format!(
+                "lattice coordinates beyond {exact} do not fit the {} shader exactly",
+                self.precision.ty()
+            )));
+        }
+        let (a, b) = tri.affine_map();
+        let head: Vec<f64> = a.into_iter().chain(b).collect();
+        let rs = self.real_size();
+        let chunk = self.chunk(rs * d.max(k));
+        let mut values = Vec::with_capacity(lattice.len() / d.max(1) * k);
+        for part in lattice.chunks(chunk * d) {
+            let count = part.len() / d;
+            let input: Vec<f64> = head
+                .iter()
+                .copied()
+                .chain(part.iter().map(|&u| u as f64))
+                .collect();
+            let pending =
+                self.submit(eval, &self.encode_reals(&input), count, &[count * k * rs])?;
+            values.extend(self.decode_reals(&self.finish(pending)?[0]));
+        }
+        Ok(values)
     }
 
     /// The shader stage alone, the twin of [`Decider::fast_path`](crate::cpu::decide::Decider::fast_path): for each simplex (rows of
@@ -424,30 +595,107 @@ impl Oracle for GpuOracle<'_> {
         status: &mut [Status],
         lambda: &mut [f64],
     ) -> Result<u64> {
-        let k = self.k;
-        let n = k + 1;
-        let count = status.len();
-        // Host side: the CPU's cheap filters, then the scaled rows of L for the rest.
+        let n = self.k + 1;
+        let rs = self.real_size();
+        let chunk = self.chunk(rs * self.k * n).min(PIPELINE_CHUNK);
+        let ranges: Vec<Range<usize>> = (0..status.len())
+            .step_by(chunk)
+            .map(|s| s..(s + chunk).min(status.len()))
+            .collect();
+        // A pipeline: while the device solves chunk c, the host packs chunk c + 1 and
+        // settles chunk c - 1 (keeps certified verdicts, re-decides the rest on the CPU).
+        let mut exact = 0;
+        let mut next = ranges
+            .first()
+            .map(|r| self.prepare(values, simplices, r.clone(), status));
+        let mut solved: Option<(Vec<usize>, Vec<Vec<u8>>)> = None;
+        for c in 0..ranges.len() {
+            let (sent, bytes) = next
+                .take()
+                .expect("each chunk is prepared before it is sent");
+            let outputs = [sent.len() * n * rs, sent.len() * 4];
+            let mut pending = if sent.is_empty() {
+                None
+            } else {
+                Some(self.submit(&self.solve, &bytes, sent.len(), &outputs)?)
+            };
+            let mut early = None;
+            if self.phased.load(Ordering::Relaxed) {
+                early = pending.take().map(|p| self.finish(p)).transpose()?;
+            }
+            if let Some(r) = ranges.get(c + 1) {
+                next = Some(self.prepare(values, simplices, r.clone(), status));
+            }
+            if let Some((prev, res)) = solved.take() {
+                exact += self.settle(values, simplices, &prev, &res, status, lambda)?;
+            }
+            let res = match (early, pending) {
+                (Some(res), _) => res,
+                (None, Some(p)) => self.finish(p)?,
+                (None, None) => vec![Vec::new(), Vec::new()],
+            };
+            self.solved.fetch_add(sent.len() as u64, Ordering::Relaxed);
+            solved = Some((sent, res));
+        }
+        if let Some((prev, res)) = solved {
+            exact += self.settle(values, simplices, &prev, &res, status, lambda)?;
+        }
+        Ok(exact)
+    }
+}
+
+impl GpuOracle<'_> {
+    /// Host side before the shader, for the simplices in `range`: the CPU's cheap filters
+    /// (their verdicts go straight into `status`), then the scaled rows of L for the rest,
+    /// encoded for upload. Returns the indices sent and the bytes.
+    fn prepare(
+        &self,
+        values: &[f64],
+        simplices: &[u32],
+        range: Range<usize>,
+        status: &mut [Status],
+    ) -> (Vec<usize>, Vec<u8>) {
+        let started = Instant::now();
+        let (k, n) = (self.k, self.k + 1);
         let val =
             |i: usize| move |j: usize, c: usize| values[simplices[i * n + j] as usize * k + c];
-        let pre: Vec<Option<Status>> = (0..count)
+        let start = range.start;
+        let pre: Vec<Option<Status>> = range
             .into_par_iter()
             .map(|i| filter_verdict(k, val(i)))
             .collect();
-        let sent: Vec<usize> = (0..count).filter(|&i| pre[i].is_none()).collect();
+        let mut sent = Vec::new();
+        for (o, p) in pre.iter().enumerate() {
+            match p {
+                Some(s) => status[start + o] = *s,
+                None => sent.push(start + o),
+            }
+        }
         let mut packed = vec![0.0; sent.len() * k * n];
         packed
             .par_chunks_mut(k * n)
             .zip(&sent)
             .for_each(|(r, &i)| scaled_rows(k, val(i), r));
-        let (flags, lam) = self.solve_packed(&packed, sent.len())?;
-        self.solved.fetch_add(sent.len() as u64, Ordering::Relaxed);
-        for (i, p) in pre.iter().enumerate() {
-            if let Some(s) = p {
-                status[i] = *s;
-            }
-        }
-        // Keep what the bound certifies; decide the rest on the CPU.
+        let bytes = self.encode_reals(&packed);
+        add_time(&self.host_ns, started);
+        (sent, bytes)
+    }
+
+    /// Host side after the shader: keeps what the bound certifies and decides the rest of
+    /// `sent` on the CPU, in one gathered batch. Returns the count of exact decisions.
+    fn settle(
+        &self,
+        values: &[f64],
+        simplices: &[u32],
+        sent: &[usize],
+        res: &[Vec<u8>],
+        status: &mut [Status],
+        lambda: &mut [f64],
+    ) -> Result<u64> {
+        let started = Instant::now();
+        let n = self.k + 1;
+        let lam = self.decode_reals(&res[0]);
+        let flags: Vec<u32> = bytemuck::pod_collect_to_vec(&res[1]);
         let keep_crossed = self.precision == Precision::F64;
         let recheck: Vec<usize> = sent
             .iter()
@@ -467,7 +715,6 @@ impl Oracle for GpuOracle<'_> {
             .collect();
         self.rechecked
             .fetch_add(recheck.len() as u64, Ordering::Relaxed);
-        // The CPU oracle on the rest, gathered into one batch.
         let sub: Vec<u32> = recheck
             .iter()
             .flat_map(|&i| simplices[i * n..(i + 1) * n].iter().copied())
@@ -486,6 +733,7 @@ impl Oracle for GpuOracle<'_> {
                 lambda[i * n..(i + 1) * n].copy_from_slice(l);
             }
         }
+        add_time(&self.host_ns, started);
         Ok(exact)
     }
 }

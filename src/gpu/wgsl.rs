@@ -9,7 +9,7 @@ use crate::expr::ast::{Op1, Op2};
 
 /// The batch-evaluation compute shader; the emitted prelude supplies `real`, `DIM`, `OUTS`
 /// and `isomesh_f`.
-pub const EVAL_POINTS_WGSL: &str = include_str!("../../shaders/eval_points.wgsl");
+pub const EVAL_VERTICES_WGSL: &str = include_str!("../../shaders/eval_vertices.wgsl");
 /// f64 elementary functions (SPIR-V has no f64 exp, log or trigonometry).
 pub const MATH_F64_WGSL: &str = include_str!("../../shaders/math_f64.wgsl");
 
@@ -151,7 +151,8 @@ pub fn emit_function(prog: &Program, name: &str, p: Precision) -> Result<String>
     Ok(s)
 }
 
-/// The whole batch-evaluation shader for `prog`, validated.
+/// The vertex-evaluation shader for `prog` (`shaders/eval_vertices.wgsl`: lattice vertices
+/// to R^d, then f), validated.
 pub fn eval_shader(prog: &Program, p: Precision) -> Result<String> {
     let mut src = String::new();
     let _ = writeln!(
@@ -165,7 +166,7 @@ pub fn eval_shader(prog: &Program, p: Precision) -> Result<String> {
         src.push_str(MATH_F64_WGSL);
     }
     src.push_str(&emit_function(prog, "isomesh_f", p)?);
-    src.push_str(EVAL_POINTS_WGSL);
+    src.push_str(EVAL_VERTICES_WGSL);
     validate(&src, p)?;
     Ok(src)
 }

@@ -400,6 +400,32 @@ impl Triangulation {
         }
     }
 
+    /// The map from lattice to ambient coordinates as a dense affine map x = A u + b:
+    /// (A row-major, d x d; b). The GPU's vertex shader uses it; for unrotated FK and
+    /// Coxeter lattices [`Triangulation::vertex_coords`] computes the same map more cheaply,
+    /// so the two may differ in the last bits.
+    pub fn affine_map(&self) -> (Vec<f64>, Vec<f64>) {
+        let d = self.d;
+        let a = match &self.linear {
+            Linear::Dense { a, .. } => a.clone(),
+            _ => {
+                let mut a = vec![0.0; d * d];
+                let mut u = vec![0.0; d];
+                let mut col = vec![0.0; d];
+                for c in 0..d {
+                    u.fill(0.0);
+                    u[c] = 1.0;
+                    self.apply_unrotated(&u, &mut col);
+                    for r in 0..d {
+                        a[r * d + c] = col[r];
+                    }
+                }
+                a
+            }
+        };
+        (a, self.offset.clone())
+    }
+
     /// Ambient coordinates of the lattice vertex `v`, into `x` (length d).
     #[inline]
     pub fn vertex_coords(&self, v: &[i32], x: &mut [f64]) {

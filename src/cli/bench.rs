@@ -1,0 +1,431 @@
+//! `isomesh bench`: the CPU oracle against the GPU oracle on the same batches (simplices per
+//! second, where the GPU's time goes, whether the verdicts agree), then whole traces of the
+//! reference cases on both backends (speed-up over the C++ library, whether S agrees); as
+//! Markdown tables, and optionally a JSON file and a PNG plot.
+
+use std::path::PathBuf;
+use std::time::Instant;
+
+use clap::{Args, ValueEnum};
+use isomesh::bench::{median, trace_case, OracleBatch, REFERENCE_CASES};
+use isomesh::export::plot::{write_charts, Chart, Series, PALETTE};
+use isomesh::export::write_atomic;
+use isomesh::expr::ImplicitFunction;
+use isomesh::gpu::{Gpu, GpuOracle, Precision};
+use isomesh::trace::{CpuOracle, Oracle};
+use isomesh::{Error, Result};
+use serde_json::{json, Value};
+
+use super::trace::Backend;
+
+/// Which reference traces to run.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum TraceSet {
+    /// No traces.
+    None,
+    /// The cases of at most 200,000 simplices.
+    Quick,
+    /// Every case (minutes on a small machine).
+    All,
+}
+
+/// Flags of `isomesh bench`.
+#[derive(Args, Clone, Debug)]
+pub struct BenchArgs {
+    /// Codimensions for the oracle alone: a list (1,2,3), a range (1-8), or 0 for none.
+    #[arg(long, default_value = "1-8", value_parser = parse_ks)]
+    pub k: Ks,
+    /// Simplices per oracle batch.
+    #[arg(long, default_value_t = 200_000)]
+    pub count: usize,
+    /// Runs per measurement; the median is reported.
+    #[arg(long, default_value_t = 3)]
+    pub repeats: usize,
+    /// Reference traces: none, quick (up to 200,000 simplices) or all.
+    #[arg(long, value_enum, default_value = "quick")]
+    pub traces: TraceSet,
+    /// cpu: the CPU only; gpu: a GPU is required; auto: the best adapter if any (software
+    /// ones too, marked as such).
+    #[arg(long, value_enum, default_value = "auto")]
+    pub backend: Backend,
+    /// Worker threads for the CPU (default: all cores).
+    #[arg(long)]
+    pub threads: Option<usize>,
+    /// Write every figure as JSON.
+    #[arg(long)]
+    pub json: Option<PathBuf>,
+    /// Plot simplices per second against k, and the traces' speed-ups, into a PNG.
+    #[arg(long)]
+    pub png: Option<PathBuf>,
+}
+
+/// A list of codimensions.
+#[derive(Clone, Debug)]
+pub struct Ks(pub Vec<usize>);
+
+fn parse_ks(s: &str) -> std::result::Result<Ks, String> {
+    let bad = || format!("'{s}': expected k values such as 1,2,3 or 1-8 (each 1 to 16), or 0");
+    if s.trim() == "0" {
+        return Ok(Ks(Vec::new()));
+    }
+    let mut ks = Vec::new();
+    for part in s.split(',') {
+        let num = |t: &str| t.trim().parse::<usize>().map_err(|_| bad());
+        match part.split_once('-') {
+            Some((a, b)) => ks.extend(num(a)?..=num(b)?),
+            None => ks.push(num(part)?),
+        }
+    }
+    if ks.is_empty() || ks.iter().any(|&k| !(1..=16).contains(&k)) {
+        return Err(bad());
+    }
+    ks.sort_unstable();
+    ks.dedup();
+    Ok(Ks(ks))
+}
+
+/// Runs the benchmark in a pool of the requested size.
+pub fn run(args: &BenchArgs) -> Result<()> {
+    if args.count == 0 || args.repeats == 0 {
+        return Err(Error::Spec(
+            "--count and --repeats must be at least 1".into(),
+        ));
+    }
+    let threads = args.threads.unwrap_or_else(rayon::current_num_threads);
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(threads.max(1))
+        .build()
+        .map_err(|e| Error::Io(format!("cannot start {threads} threads: {e}")))?;
+    pool.install(|| run_in_pool(args, threads.max(1)))
+}
+
+fn run_in_pool(args: &BenchArgs, threads: usize) -> Result<()> {
+    let gpu = match args.backend {
+        Backend::Cpu => None,
+        Backend::Gpu => Some(Gpu::open(true)?),
+        Backend::Auto => match Gpu::open(true) {
+            Ok(g) => Some(g),
+            Err(e) => {
+                eprintln!("note: {e}; the CPU only");
+                None
+            }
+        },
+    };
+    let device = match &gpu {
+        Some(g) => format!(
+            "{} ({}, {}{})",
+            g.adapter.name,
+            g.adapter.backend,
+            g.adapter.device_type,
+            if g.adapter.is_software() {
+                ", software: expect it slower than the CPU"
+            } else {
+                ""
+            }
+        ),
+        None => "none".into(),
+    };
+    println!("CPU: {threads} threads; GPU: {device}\n");
+    let mut precisions = Vec::new();
+    if let Some(g) = &gpu {
+        precisions.push(Precision::F32);
+        if g.adapter.shader_f64 {
+            precisions.push(Precision::F64);
+        }
+    }
+
+    let oracle_rows = oracle_table(args, gpu.as_ref(), &precisions)?;
+    let eval_rows = eval_table(args, gpu.as_ref(), &precisions)?;
+    let trace_rows = trace_table(args, gpu.as_ref())?;
+
+    if let Some(path) = &args.png {
+        plot(path, &oracle_rows, &trace_rows, &precisions)?;
+        println!("\nwrote {}", path.display());
+    }
+    if let Some(path) = &args.json {
+        let report = json!({
+            "threads": threads,
+            "gpu": device,
+            "count": args.count,
+            "repeats": args.repeats,
+            "oracle": oracle_rows,
+            "vertex_eval": eval_rows,
+            "traces": trace_rows,
+        });
+        write_atomic(path, |w| {
+            serde_json::to_writer_pretty(&mut *w, &report).map_err(std::io::Error::other)
+        })?;
+        println!("wrote {}", path.display());
+    }
+    Ok(())
+}
+
+/// The oracle alone: one row per k and backend.
+fn oracle_table(
+    args: &BenchArgs,
+    gpu: Option<&Gpu>,
+    precisions: &[Precision],
+) -> Result<Vec<Value>> {
+    let mut rows = Vec::new();
+    if args.k.0.is_empty() {
+        return Ok(rows);
+    }
+    println!(
+        "Oracle alone: {} random k-simplices per batch, simplices per second (median of {})",
+        args.count, args.repeats
+    );
+    println!("GPU time per simplex: host (filters, packing, CPU recheck), then upload, compute and readback, each timed alone in a separate run.\n");
+    println!("| k | oracle | simplices/s | vs CPU | rechecked | host ns | upload ns | compute ns | readback ns | same verdicts |");
+    println!("|---|---|---|---|---|---|---|---|---|---|");
+    for &k in &args.k.0 {
+        let batch = OracleBatch::random(k, args.count, k as u64)?;
+        let cpu = CpuOracle::new(&batch.function);
+        let (cpu_rate, cpu_status, cpu_lambda) = batch.time(&cpu, args.repeats)?;
+        println!("| {k} | cpu | {cpu_rate:.3e} | 1 | | | | | | |");
+        rows.push(json!({"k": k, "oracle": "cpu", "simplices_per_s": cpu_rate}));
+        let Some(g) = gpu else { continue };
+        for &p in precisions {
+            let o = GpuOracle::new(g.clone(), &batch.function, Some(p))?;
+            let (rate, status, lambda) = batch.time(&o, args.repeats)?;
+            let st = o.stats();
+            let recheck = st.rechecked as f64 / st.solved.max(1) as f64;
+            // The same decisions, and in f64 the same crossing points up to rounding.
+            let n = k + 1;
+            let same = status == cpu_status
+                && (0..batch.len()).filter(|&i| status[i].crossed()).all(|i| {
+                    lambda[i * n..(i + 1) * n]
+                        .iter()
+                        .zip(&cpu_lambda[i * n..(i + 1) * n])
+                        .all(|(a, b)| (a - b).abs() <= 1e-12 * (1.0 + b.abs()))
+                });
+            o.reset_stats();
+            o.set_phased(true);
+            batch.time(&o, 1)?;
+            let ph = o.stats();
+            let ns = |s: f64| s * 1e9 / batch.len() as f64;
+            let name = format!("gpu {}", p.ty());
+            println!(
+                "| {k} | {name} | {rate:.3e} | {:.2} | {:.1}% | {:.1} | {:.1} | {:.1} | {:.1} | {} |",
+                rate / cpu_rate,
+                100.0 * recheck,
+                ns(ph.host_s),
+                ns(ph.upload_s),
+                ns(ph.compute_s),
+                ns(ph.readback_s),
+                if same { "yes" } else { "NO" }
+            );
+            rows.push(json!({
+                "k": k, "oracle": name, "simplices_per_s": rate, "recheck_share": recheck,
+                "host_ns": ns(ph.host_s), "upload_ns": ns(ph.upload_s),
+                "compute_ns": ns(ph.compute_s), "readback_ns": ns(ph.readback_s),
+                "same_verdicts": same,
+            }));
+            if !same {
+                return Err(Error::Gpu(format!(
+                    "the GPU oracle ({}) disagrees with the CPU at k = {k}",
+                    p.ty()
+                )));
+            }
+        }
+    }
+    Ok(rows)
+}
+
+/// Vertex evaluation alone: f at lattice vertices, on the CPU (all threads) and in the GPU's
+/// vertex shader, for a polynomial and a transcendental preset.
+fn eval_table(args: &BenchArgs, gpu: Option<&Gpu>, precisions: &[Precision]) -> Result<Vec<Value>> {
+    let mut rows = Vec::new();
+    if args.k.0.is_empty() {
+        return Ok(rows);
+    }
+    println!(
+        "\nVertex evaluation alone: {} lattice vertices, vertices per second (median of {})\n",
+        args.count, args.repeats
+    );
+    println!(
+        "| preset | d | k | evaluator | vertices/s | vs CPU | largest difference from the CPU |"
+    );
+    println!("|---|---|---|---|---|---|---|");
+    for name in ["3-torus", "bagel-klein"] {
+        let p = isomesh::expr::preset(name, &[])?;
+        let (d, k) = (p.dim(), p.system.codim());
+        let tri = p.triangulation.build(d)?;
+        let lattice: Vec<i32> = (0..args.count * d)
+            .map(|i| ((i / d) as i32 % 97) - 48 + (i % d) as i32)
+            .collect();
+        let mut cpu_values = vec![0.0; args.count * k];
+        let cpu = CpuOracle::new(&p.system);
+        let (cpu_s, ()) = timed(args.repeats, || {
+            cpu.eval_vertices(&tri, &lattice, &mut cpu_values)
+        })?;
+        let cpu_rate = args.count as f64 / cpu_s;
+        println!("| {name} | {d} | {k} | cpu | {cpu_rate:.3e} | 1 | |");
+        rows.push(json!({"preset": name, "evaluator": "cpu", "vertices_per_s": cpu_rate}));
+        let Some(g) = gpu else { continue };
+        for &prec in precisions {
+            let o = GpuOracle::new(g.clone(), &p.system, Some(prec))?;
+            let (s, values) = timed(args.repeats, || o.eval_stage(&tri, &lattice))?;
+            let worst = values
+                .iter()
+                .zip(&cpu_values)
+                .map(|(a, b)| (a - b).abs() / (1.0 + b.abs()))
+                .fold(0.0, f64::max);
+            let rate = args.count as f64 / s;
+            let name_p = format!("gpu {}", prec.ty());
+            println!(
+                "| {name} | {d} | {k} | {name_p} | {rate:.3e} | {:.2} | {worst:.1e} |",
+                rate / cpu_rate
+            );
+            rows.push(
+                json!({"preset": name, "evaluator": name_p, "vertices_per_s": rate,
+                "largest_relative_difference": worst}),
+            );
+        }
+    }
+    Ok(rows)
+}
+
+/// Whole traces of the reference cases on the CPU and, when there is one, the GPU.
+fn trace_table(args: &BenchArgs, gpu: Option<&Gpu>) -> Result<Vec<Value>> {
+    let mut rows = Vec::new();
+    let limit = match args.traces {
+        TraceSet::None => return Ok(rows),
+        TraceSet::Quick => 200_000,
+        TraceSet::All => u64::MAX,
+    };
+    println!(
+        "\nTraces of the reference cases (C++: GUDHI, one thread), median of {}\n",
+        args.repeats
+    );
+    println!(
+        "| case | d | k | simplices | C++ | CPU | CPU speed-up | GPU | GPU speed-up | same S |"
+    );
+    println!("|---|---|---|---|---|---|---|---|---|---|");
+    for case in REFERENCE_CASES.iter().filter(|c| c.simplices <= limit) {
+        let p = case.problem()?;
+        let cpu_oracle = CpuOracle::new(&p.system);
+        let (cpu_s, cpu) = timed(args.repeats, || trace_case(&p, &cpu_oracle))?;
+        let n = cpu.len();
+        let mut row = json!({
+            "case": case.label, "d": p.dim(), "k": p.system.codim(), "simplices": n,
+            "reference_simplices": case.simplices, "reference_s": case.seconds,
+            "cpu_s": cpu_s, "cpu_speedup": case.speedup(n, cpu_s),
+        });
+        let mut gpu_cols = ("-".to_string(), "-".to_string(), "-");
+        if let Some(g) = gpu {
+            let o = GpuOracle::new(g.clone(), &p.system, None)?;
+            let (gpu_s, s) = timed(args.repeats, || trace_case(&p, &o))?;
+            let same = s.sorted_keys() == cpu.sorted_keys();
+            gpu_cols = (
+                format!("{gpu_s:.3} s"),
+                format!("{:.1}x", case.speedup(s.len(), gpu_s)),
+                if same { "yes" } else { "NO" },
+            );
+            row["gpu_s"] = json!(gpu_s);
+            row["gpu_speedup"] = json!(case.speedup(s.len(), gpu_s));
+            row["gpu_precision"] = json!(o.precision().ty());
+            row["same_sample"] = json!(same);
+            if !same {
+                return Err(Error::Gpu(format!(
+                    "{}: the GPU trace differs from the CPU's",
+                    case.label
+                )));
+            }
+        }
+        println!(
+            "| {} | {} | {} | {n} | {} s | {cpu_s:.3} s | {:.1}x | {} | {} | {} |",
+            case.label,
+            p.dim(),
+            p.system.codim(),
+            case.seconds,
+            case.speedup(n, cpu_s),
+            gpu_cols.0,
+            gpu_cols.1,
+            gpu_cols.2
+        );
+        row["short"] = json!(case.short);
+        rows.push(row);
+    }
+    Ok(rows)
+}
+
+/// Runs `f` `repeats` times: the median seconds and the last result.
+fn timed<T>(repeats: usize, mut f: impl FnMut() -> Result<T>) -> Result<(f64, T)> {
+    let mut times = Vec::new();
+    let mut last = None;
+    for _ in 0..repeats.max(1) {
+        let t = Instant::now();
+        last = Some(f()?);
+        times.push(t.elapsed().as_secs_f64());
+    }
+    Ok((median(times), last.expect("at least one run")))
+}
+
+fn plot(
+    path: &std::path::Path,
+    oracle: &[Value],
+    traces: &[Value],
+    precisions: &[Precision],
+) -> Result<()> {
+    let mut names = vec!["cpu".to_string()];
+    names.extend(precisions.iter().map(|p| format!("gpu {}", p.ty())));
+    let series = |rows: &[Value], x: &dyn Fn(usize, &Value) -> f64, key: &str, name: &str| {
+        rows.iter()
+            .enumerate()
+            .filter(|(_, r)| r["oracle"].as_str().is_none_or(|o| o == name))
+            .filter_map(|(i, r)| Some((x(i, r), r[key].as_f64()?)))
+            .collect::<Vec<_>>()
+    };
+    let mut charts = Vec::new();
+    if !oracle.is_empty() {
+        charts.push(Chart {
+            title: "Intersection oracle alone".into(),
+            x_label: "codimension k".into(),
+            y_label: "simplices per second".into(),
+            series: names
+                .iter()
+                .enumerate()
+                .map(|(i, name)| Series {
+                    name: name.clone(),
+                    color: PALETTE[i % PALETTE.len()],
+                    points: series(
+                        oracle,
+                        &|_, r| r["k"].as_f64().unwrap_or(0.0),
+                        "simplices_per_s",
+                        name,
+                    ),
+                })
+                .collect(),
+            x_ticks: Vec::new(),
+        });
+    }
+    if !traces.is_empty() {
+        let at = |i: usize, _: &Value| i as f64;
+        charts.push(Chart {
+            title: "Whole traces against the C++ library".into(),
+            x_label: "reference case".into(),
+            y_label: "speed-up (throughput)".into(),
+            series: [("cpu", "cpu_speedup"), ("gpu", "gpu_speedup")]
+                .iter()
+                .enumerate()
+                .map(|(i, (name, key))| Series {
+                    name: name.to_string(),
+                    color: PALETTE[i],
+                    points: series(traces, &at, key, name),
+                })
+                .filter(|s| !s.points.is_empty())
+                .collect(),
+            x_ticks: traces
+                .iter()
+                .enumerate()
+                .map(|(i, r)| (i as f64, r["short"].as_str().unwrap_or("?").to_string()))
+                .collect(),
+        });
+    }
+    if charts.is_empty() {
+        return Err(Error::Spec(
+            "--png: nothing was measured (--k 0 and --traces none)".into(),
+        ));
+    }
+    write_charts(path, &charts, (700, 480))
+}
