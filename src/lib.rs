@@ -8,7 +8,7 @@
 //!   spec files and presets.
 //! - [`trace`]: manifold tracing and the exhaustive scan, behind the [`trace::Oracle`] trait.
 //! - [`gpu`]: the GPU oracle (wgpu, WGSL). [`complex`]: the cell complex and its topology.
-//!   [`export`]: files and pictures. [`bench`]: the measurements of `isomesh bench`.
+//!   [`export`]: files and pictures. [`bench`](mod@bench): the measurements of `isomesh bench`.
 //!
 //! ```
 //! use isomesh::expr::{preset, ImplicitFunction};
