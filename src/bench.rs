@@ -179,14 +179,23 @@ impl OracleBatch {
         let m = self.len();
         let mut status = vec![Status::Outside; m];
         let mut lambda = vec![0.0; m * (self.k + 1)];
-        let mut rates = Vec::new();
-        for _ in 0..repeats.max(1) {
-            let t = Instant::now();
-            oracle.decide(&self.values, &self.simplices, &mut status, &mut lambda)?;
-            rates.push(m as f64 / t.elapsed().as_secs_f64());
-        }
-        Ok((median(rates), status, lambda))
+        let (seconds, _) = timed(repeats, || {
+            oracle.decide(&self.values, &self.simplices, &mut status, &mut lambda)
+        })?;
+        Ok((m as f64 / seconds, status, lambda))
     }
+}
+
+/// Runs `f` `repeats` times (at least once): the median seconds and the last result.
+pub fn timed<T>(repeats: usize, mut f: impl FnMut() -> Result<T>) -> Result<(f64, T)> {
+    let mut times = Vec::new();
+    let mut last = None;
+    for _ in 0..repeats.max(1) {
+        let t = Instant::now();
+        last = Some(f()?);
+        times.push(t.elapsed().as_secs_f64());
+    }
+    Ok((median(times), last.expect("at least one run")))
 }
 
 /// The median of `v` (the upper one for an even count); NaN when empty.

@@ -4,10 +4,9 @@
 //! Markdown tables, and optionally a JSON file and a PNG plot.
 
 use std::path::PathBuf;
-use std::time::Instant;
 
 use clap::{Args, ValueEnum};
-use isomesh::bench::{median, trace_case, OracleBatch, REFERENCE_CASES};
+use isomesh::bench::{timed, trace_case, OracleBatch, REFERENCE_CASES};
 use isomesh::export::plot::{write_charts, Chart, Series, PALETTE};
 use isomesh::export::write_atomic;
 use isomesh::expr::ImplicitFunction;
@@ -32,7 +31,8 @@ pub enum TraceSet {
 /// Flags of `isomesh bench`.
 #[derive(Args, Clone, Debug)]
 pub struct BenchArgs {
-    /// Codimensions for the oracle alone: a list (1,2,3), a range (1-8), or 0 for none.
+    /// Codimensions for the oracle alone: a list (1,2,3), a range (1-8), or 0 for none (which
+    /// also skips the vertex-evaluation table).
     #[arg(long, default_value = "1-8", value_parser = parse_ks)]
     pub k: Ks,
     /// Simplices per oracle batch.
@@ -347,18 +347,6 @@ fn trace_table(args: &BenchArgs, gpu: Option<&Gpu>) -> Result<Vec<Value>> {
         rows.push(row);
     }
     Ok(rows)
-}
-
-/// Runs `f` `repeats` times: the median seconds and the last result.
-fn timed<T>(repeats: usize, mut f: impl FnMut() -> Result<T>) -> Result<(f64, T)> {
-    let mut times = Vec::new();
-    let mut last = None;
-    for _ in 0..repeats.max(1) {
-        let t = Instant::now();
-        last = Some(f()?);
-        times.push(t.elapsed().as_secs_f64());
-    }
-    Ok((median(times), last.expect("at least one run")))
 }
 
 fn plot(

@@ -130,9 +130,9 @@ impl Program {
         }
         let mut last_read = vec![0usize; nodes.len()];
         for (t, p) in plan.iter().enumerate() {
-            for a in p.reads() {
-                last_read[a as usize] = t;
-            }
+            let (a, b) = p.core.inputs();
+            last_read[a as usize] = t;
+            last_read[b as usize] = t;
         }
         for &o in &outputs {
             last_read[o as usize] = usize::MAX;
@@ -152,10 +152,8 @@ impl Program {
                 post: p.post,
                 dst,
             });
-            let mut reads = p.reads();
-            reads.sort_unstable();
-            reads.dedup();
-            for a in reads {
+            let (a, b) = p.core.inputs();
+            for a in [Some(a), (b != a).then_some(b)].into_iter().flatten() {
                 let a = a as usize;
                 if last_read[a] == t && !matches!(nodes[a], Node::Var(_) | Node::Const(_)) {
                     free.push(reg[a]);
@@ -357,13 +355,6 @@ struct Planned {
     node: u32,
     core: Core,
     post: Post,
-}
-
-impl Planned {
-    fn reads(&self) -> Vec<u32> {
-        let (a, b) = self.core.inputs();
-        vec![a, b]
-    }
 }
 
 /// Groups the DAG's operations into instructions. A square a^2 read once is folded into the

@@ -14,13 +14,13 @@
 //! by the CPU's values. With the same values, the f64 shader's lambda equals the CPU's where
 //! the device rounds division and does not contract (lavapipe: bit-identical); elsewhere
 //! points may differ by a few ulps, never the decisions. The vertex shader
-//! ([`GpuOracle::eval_stage`]) exists and matches its CPU twin to a few ulps, which is why
+//! ([`GpuOracle::eval_stage`]) matches its CPU twin only to a few ulps, not bit for bit, so
 //! tracing does not take its values.
 
 use std::borrow::Cow;
 use std::ops::Range;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
-use std::sync::Mutex;
+use std::sync::{Mutex, MutexGuard, OnceLock};
 use std::time::Instant;
 
 use rayon::prelude::*;
@@ -102,8 +102,8 @@ pub struct GpuOracle<'f> {
     k: usize,
     precision: Precision,
     solve: wgpu::ComputePipeline,
-    /// The vertex shader, when f is written in the language.
-    eval: Option<wgpu::ComputePipeline>,
+    /// The vertex shader, built on first use (tracing never needs it).
+    eval: OnceLock<wgpu::ComputePipeline>,
     solved: AtomicU64,
     rechecked: AtomicU64,
     gpu_ns: AtomicU64,
@@ -138,21 +138,13 @@ impl<'f> GpuOracle<'f> {
         };
         let k = f.codim();
         let solve = pipeline(&gpu, &solve_shader(k, precision)?, "solve")?;
-        let eval = match f.system() {
-            Some(s) => Some(pipeline(
-                &gpu,
-                &eval_shader(s.values(), precision)?,
-                "eval_vertices",
-            )?),
-            None => None,
-        };
         Ok(GpuOracle {
             gpu,
             f,
             k,
             precision,
             solve,
-            eval,
+            eval: OnceLock::new(),
             solved: AtomicU64::new(0),
             rechecked: AtomicU64::new(0),
             gpu_ns: AtomicU64::new(0),
@@ -225,7 +217,7 @@ impl<'f> GpuOracle<'f> {
         input: &[u8],
         count: usize,
         outputs: &[usize],
-    ) -> Result<Pending> {
+    ) -> Result<Pending<'_>> {
         let phased = self.phased.load(Ordering::Relaxed);
         let mut pool = self
             .buffers
@@ -338,22 +330,35 @@ impl<'f> GpuOracle<'f> {
                 .map_async(wgpu::MapMode::Read, move |r| {
                     let _ = tx.send(r);
                 });
-            maps.push((staging, size, want, rx));
+            maps.push(Readback {
+                staging,
+                size,
+                want,
+                mapped: rx,
+            });
         }
         add_time(&self.gpu_ns, started);
         Ok(Pending {
+            _pool: pool,
             maps,
             readback_from: Instant::now(),
         })
     }
 
     /// Waits for a submitted round trip and returns its outputs' bytes.
-    fn finish(&self, pending: Pending) -> Result<Vec<Vec<u8>>> {
+    fn finish(&self, pending: Pending<'_>) -> Result<Vec<Vec<u8>>> {
         let started = Instant::now();
         self.wait()?;
         let mut results = Vec::with_capacity(pending.maps.len());
-        for (staging, size, want, rx) in pending.maps {
-            rx.recv()
+        for Readback {
+            staging,
+            size,
+            want,
+            mapped,
+        } in pending.maps
+        {
+            mapped
+                .recv()
                 .map_err(|_| Error::Gpu("the readback was dropped".into()))?
                 .map_err(|e| Error::Gpu(format!("readback: {e}")))?;
             let slice = staging.slice(..size);
@@ -408,17 +413,22 @@ impl<'f> GpuOracle<'f> {
     }
 }
 
-/// A round trip on its way: the staging buffers being mapped, with their sizes, the bytes
-/// wanted from each, and the channel that says when the mapping is done.
-struct Pending {
-    #[allow(clippy::type_complexity)]
-    maps: Vec<(
-        wgpu::Buffer,
-        u64,
-        usize,
-        std::sync::mpsc::Receiver<std::result::Result<(), wgpu::BufferAsyncError>>,
-    )>,
+/// A round trip on its way, from [`GpuOracle::submit`] to [`GpuOracle::finish`].
+/// It holds the buffer pool until it is finished, so that calls from several threads never
+/// share buffers in flight.
+struct Pending<'a> {
+    _pool: MutexGuard<'a, Vec<Option<wgpu::Buffer>>>,
+    maps: Vec<Readback>,
     readback_from: Instant,
+}
+
+/// One output on its way back: the staging buffer being mapped, its size, the bytes wanted
+/// from it, and the channel that says when the mapping is done.
+struct Readback {
+    staging: wgpu::Buffer,
+    size: u64,
+    want: usize,
+    mapped: std::sync::mpsc::Receiver<std::result::Result<(), wgpu::BufferAsyncError>>,
 }
 
 fn add_time(counter: &AtomicU64, since: Instant) {
@@ -498,17 +508,31 @@ impl GpuOracle<'_> {
         Ok((flags, lam))
     }
 
+    /// The vertex shader's pipeline, built the first time it is asked for.
+    fn eval_pipeline(&self) -> Result<&wgpu::ComputePipeline> {
+        if let Some(p) = self.eval.get() {
+            return Ok(p);
+        }
+        let Some(system) = self.f.system() else {
+            return Err(Error::Gpu(
+                "the GPU evaluates only functions written in the equation language".into(),
+            ));
+        };
+        let built = pipeline(
+            &self.gpu,
+            &eval_shader(system.values(), self.precision)?,
+            "eval_vertices",
+        )?;
+        Ok(self.eval.get_or_init(|| built))
+    }
+
     /// The vertex shader alone (`shaders/eval_vertices.wgsl`), the twin of
     /// [`eval_lattice`](crate::cpu::vertices::eval_lattice): f at the lattice vertices
     /// `lattice` (rows of d) of `tri`, mapped to R^d inside the shader; rows of k values.
     /// Tracing does not use it (see the module documentation): it is the building block of
     /// GPU-side scans, and measured by `isomesh bench`.
     pub fn eval_stage(&self, tri: &Triangulation, lattice: &[i32]) -> Result<Vec<f64>> {
-        let Some(eval) = &self.eval else {
-            return Err(Error::Gpu(
-                "the GPU evaluates only functions written in the equation language".into(),
-            ));
-        };
+        let eval = self.eval_pipeline()?;
         let (d, k) = (tri.dim(), self.k);
         if self.f.ambient_dim() != d {
             return Err(Error::DimensionMismatch(format!(
