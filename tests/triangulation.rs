@@ -170,6 +170,43 @@ fn cofacets_count_and_contain_the_simplex() {
 }
 
 #[test]
+fn facets_by_index_and_cofacet_apexes_keep_the_vertex_order() {
+    let mut rng = ChaCha8Rng::seed_from_u64(12);
+    for d in dims_under_test() {
+        for _ in 0..8 {
+            let l = rng.random_range(0..d.min(12));
+            let s = if d > 12 {
+                let l = rng.random_range(20..d);
+                random_simplex_small_parts(&mut rng, d, l, 4)
+            } else {
+                random_simplex(&mut rng, d, l)
+            };
+            let verts = s.vertices();
+            let mut count = 0;
+            s.for_each_cofacet_apex(|c, p| {
+                count += 1;
+                let mut cv = c.vertices();
+                assert!(
+                    !verts.contains(&cv[p]),
+                    "apex {p} of {c} is a vertex of {s}"
+                );
+                cv.remove(p);
+                assert_eq!(cv, verts, "{c} without its vertex {p} is not {s} in order");
+                let mut scratch = Simplex::vertex(&vec![0; d]).unwrap();
+                for (q, f) in c.facets().iter().enumerate() {
+                    c.facet_into(q, &mut scratch);
+                    assert_eq!(&scratch, f, "facet {q} of {c}");
+                    let mut fv = c.vertices();
+                    fv.remove(q);
+                    assert_eq!(scratch.vertices(), fv);
+                }
+            });
+            assert_eq!(count as u64, s.cofacet_count());
+        }
+    }
+}
+
+#[test]
 fn cofaces_count_and_relations_agree_both_ways() {
     let mut rng = ChaCha8Rng::seed_from_u64(3);
     for d in dims_under_test() {

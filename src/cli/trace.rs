@@ -464,6 +464,7 @@ fn run_in_pool(p: &Problem, args: &TraceArgs, threads: usize) -> Result<()> {
             "levels": st.levels,
             "oracle_calls": st.oracle_calls,
             "exact_decisions": st.exact_decisions,
+            "pivot_fallbacks": st.pivot_fallbacks,
             "degenerate": st.degenerate,
             "non_finite": st.non_finite,
             "vertices_evaluated": st.vertices,

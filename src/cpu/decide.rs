@@ -104,58 +104,33 @@ impl Decider {
     /// bound, writing lambda; `None` when a needed sign is not certain. The GPU's solve
     /// shader is its twin.
     pub fn fast_path(&mut self, values: &[f64], lambda: &mut [f64]) -> Option<Status> {
-        let n = self.n;
+        // n known at compile time for the common sizes: the same steps, unrolled.
+        macro_rules! fixed {
+            ($($n:literal)*) => {
+                match self.n {
+                    $($n => self.fast_path_steps($n, values, lambda),)*
+                    n => self.fast_path_steps(n, values, lambda),
+                }
+            };
+        }
+        fixed!(2 3 4 5 6 7 8 9)
+    }
+
+    #[inline(always)]
+    fn fast_path_steps(&mut self, n: usize, values: &[f64], lambda: &mut [f64]) -> Option<Status> {
         let k = n - 1;
-        let (l0, a, inv) = (&mut self.l0, &mut self.a, &mut self.inv);
+        let (l0, a, inv) = (
+            &mut self.l0[..n * n],
+            &mut self.a[..n * n],
+            &mut self.inv[..n * n],
+        );
         // Row r of L scaled by a power of two near 1/max|row|: exact, and it changes neither
         // lambda nor the signs of L^-1's entries (columns of L^-1 scale by positive factors).
         l0[..n].fill(1.0);
         scaled_rows(k, |j, c| values[j * k + c], &mut l0[n..]);
         a.copy_from_slice(l0);
-        inv.fill(0.0);
-        for i in 0..n {
-            inv[i * n + i] = 1.0;
-        }
-        let scale = a.iter().fold(0.0f64, |m, v| m.max(v.abs()));
-        let tiny = scale * f64::EPSILON * n as f64;
-        for c in 0..n {
-            let mut p = c;
-            for r in c + 1..n {
-                if a[r * n + c].abs() > a[p * n + c].abs() {
-                    p = r;
-                }
-            }
-            if a[p * n + c].abs() <= tiny {
-                return None;
-            }
-            if p != c {
-                for t in 0..n {
-                    a.swap(p * n + t, c * n + t);
-                    inv.swap(p * n + t, c * n + t);
-                }
-            }
-            let r_piv = 1.0 / a[c * n + c];
-            for t in c..n {
-                a[c * n + t] *= r_piv;
-            }
-            for t in 0..n {
-                inv[c * n + t] *= r_piv;
-            }
-            for r in 0..n {
-                if r == c {
-                    continue;
-                }
-                let f = a[r * n + c];
-                if f == 0.0 {
-                    continue;
-                }
-                for t in c..n {
-                    a[r * n + t] -= f * a[c * n + t];
-                }
-                for t in 0..n {
-                    inv[r * n + t] -= f * inv[c * n + t];
-                }
-            }
+        if !invert(n, a, inv) {
+            return None;
         }
         for i in 0..n {
             lambda[i] = inv[i * n];
@@ -194,6 +169,73 @@ impl Decider {
     }
 }
 
+/// Gauss-Jordan inversion with partial pivoting of the n x n row-major matrix `a`
+/// (destroyed) into `inv`; false when a pivot is below n ulps of the largest entry. The
+/// GPU's solve shader runs the same steps.
+pub(crate) fn invert(n: usize, a: &mut [f64], inv: &mut [f64]) -> bool {
+    // The same steps with n known at compile time for the common sizes (unrolled, no
+    // bounds checks): the same operations in the same order, so the same bits.
+    macro_rules! fixed {
+        ($($n:literal)*) => {
+            match n {
+                $($n => invert_steps($n, &mut a[..$n * $n], &mut inv[..$n * $n]),)*
+                _ => invert_steps(n, a, inv),
+            }
+        };
+    }
+    fixed!(2 3 4 5 6 7 8 9)
+}
+
+#[inline(always)]
+fn invert_steps(n: usize, a: &mut [f64], inv: &mut [f64]) -> bool {
+    inv.fill(0.0);
+    for i in 0..n {
+        inv[i * n + i] = 1.0;
+    }
+    let scale = a.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    let tiny = scale * f64::EPSILON * n as f64;
+    for c in 0..n {
+        let mut p = c;
+        for r in c + 1..n {
+            if a[r * n + c].abs() > a[p * n + c].abs() {
+                p = r;
+            }
+        }
+        if a[p * n + c].abs() <= tiny {
+            return false;
+        }
+        if p != c {
+            for t in 0..n {
+                a.swap(p * n + t, c * n + t);
+                inv.swap(p * n + t, c * n + t);
+            }
+        }
+        let r_piv = 1.0 / a[c * n + c];
+        for t in c..n {
+            a[c * n + t] *= r_piv;
+        }
+        for t in 0..n {
+            inv[c * n + t] *= r_piv;
+        }
+        for r in 0..n {
+            if r == c {
+                continue;
+            }
+            let f = a[r * n + c];
+            if f == 0.0 {
+                continue;
+            }
+            for t in c..n {
+                a[r * n + t] -= f * a[c * n + t];
+            }
+            for t in 0..n {
+                inv[r * n + t] -= f * inv[c * n + t];
+            }
+        }
+    }
+    true
+}
+
 /// The verdict of the cheap filters that run before any solve, with F_j[c] = `val(j, c)`:
 /// `NonFinite` for a NaN or infinite value, `Outside` when some component keeps one strict
 /// sign at every vertex (no crossing), else `None`.
@@ -218,6 +260,14 @@ pub(crate) fn scaled_rows(k: usize, val: impl Fn(usize, usize) -> f64, out: &mut
         for j in 0..n {
             out[c * n + j] = val(j, c) * s;
         }
+    }
+}
+
+/// The factors [`scaled_rows`] applies, one per component, into `out` (k entries).
+pub(crate) fn scaled_row_factors(k: usize, val: impl Fn(usize, usize) -> f64, out: &mut [f64]) {
+    for (c, o) in out.iter_mut().enumerate().take(k) {
+        let big = (0..=k).fold(0.0f64, |m, j| m.max(val(j, c).abs()));
+        *o = pow2_inverse(big);
     }
 }
 

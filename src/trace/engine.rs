@@ -1,15 +1,13 @@
-//! Manifold tracing (Algorithm 1 of the papers), one level at a time: the crossed k-simplices
-//! found last are the frontier; the k-facets of their cofacets that are not yet known are the
-//! candidates, deduplicated and sent to the oracle as one batch; the crossed ones are the next
-//! frontier. Every order here is a sorted order, so the output does not depend on threads.
+//! The state of a trace and what its steps share: the sample S, the rim, the vertex-value
+//! cache (f is evaluated once per lattice vertex per trace), the oracle calls and the
+//! breadth-first loop over levels ([`super::level`] computes one level).
 
 use std::ops::Range;
 use std::sync::atomic::Ordering;
 
-use foldhash::fast::FixedState;
-use hashbrown::HashSet;
 use rayon::prelude::*;
 
+use super::level::{sort, Back, Found, Frontier};
 use super::table::{Key, Table};
 use super::{Progress, StopReason, TraceContext, TraceStats};
 use crate::cpu::decide::Status;
@@ -20,8 +18,7 @@ const MISSING: u32 = u32::MAX;
 /// Candidates per parallel work item.
 const CHUNK: usize = 512;
 
-/// The state of one trace: the sample S, its points, the vertex-value cache, and the
-/// candidates recently found not crossed.
+/// The state of one trace: the sample S, its points, the rim and the vertex-value cache.
 pub(crate) struct Engine<'a, const W: usize> {
     pub ctx: TraceContext<'a>,
     pub s: Table<W>,
@@ -30,10 +27,9 @@ pub(crate) struct Engine<'a, const W: usize> {
     /// the edges of M-hat that the domain's boundary cuts).
     pub rim: Table<W>,
     pub rim_points: Vec<f64>,
-    verts: Table<W>,
-    values: Vec<f64>,
-    /// Rejected candidates of the previous and the current level (re-tests are only work).
-    rejected: [HashSet<Key<W>, FixedState>; 2],
+    /// The vertex-value cache: lattice vertices, and f at them (k values each).
+    pub verts: Table<W>,
+    pub values: Vec<f64>,
     pub stats: TraceStats,
 }
 
@@ -45,7 +41,6 @@ pub(crate) struct Verdicts {
 
 impl<'a, const W: usize> Engine<'a, W> {
     pub fn new(ctx: TraceContext<'a>) -> Self {
-        let hs = || HashSet::with_hasher(FixedState::with_seed(0x0dd5_eed5));
         Engine {
             ctx,
             s: Table::new(),
@@ -54,26 +49,22 @@ impl<'a, const W: usize> Engine<'a, W> {
             rim_points: Vec::new(),
             verts: Table::new(),
             values: Vec::new(),
-            rejected: [hs(), hs()],
             stats: TraceStats::default(),
         }
     }
 
     /// Bytes held by the trace's containers.
     pub fn bytes(&self) -> usize {
-        let set = |h: &HashSet<Key<W>, FixedState>| h.allocation_size();
         self.s.bytes()
             + self.points.capacity() * 8
             + self.rim.bytes()
             + self.rim_points.capacity() * 8
             + self.verts.bytes()
             + self.values.capacity() * 8
-            + set(&self.rejected[0])
-            + set(&self.rejected[1])
     }
 
     /// Whether the trace must stop now (Ctrl-C, or the next step would pass the memory limit).
-    fn must_stop(&mut self, next_bytes: usize) -> bool {
+    pub(super) fn must_stop(&mut self, next_bytes: usize) -> bool {
         if let Some(c) = self.ctx.cancel {
             if c.load(Ordering::Relaxed) {
                 self.stats.stopped = Some(StopReason::Interrupted);
@@ -91,26 +82,25 @@ impl<'a, const W: usize> Engine<'a, W> {
         false
     }
 
-    /// Breadth-first trace from the simplices `frontier` (indices into S) until no new
-    /// crossed simplex appears, the box is exhausted or a stop is requested.
-    pub fn run(&mut self, mut frontier: Range<usize>) -> Result<()> {
-        let (d, k) = (self.ctx.d, self.ctx.k);
-        while !frontier.is_empty() {
-            let cands = self.neighbours(frontier.clone())?;
-            let per_candidate = W * 8 + (k + 1) * 12 + 1 + 2 * (W * 8 + d * 8 + 8);
-            if self.must_stop(cands.len() * per_candidate) {
+    /// Breadth-first trace from the simplices `frontier` (indices into S, already evaluated)
+    /// until no new crossed simplex appears, the box is exhausted or a stop is requested.
+    pub fn run(&mut self, frontier: Range<usize>) -> Result<()> {
+        let mut front = Frontier {
+            rows: self.rows_of(frontier.clone())?,
+            range: frontier,
+            back: Back::default(),
+        };
+        while !front.range.is_empty() {
+            let Some(found) = self.step(&front)? else {
                 return Ok(());
-            }
-            let verdicts = self.evaluate(&cands)?;
-            let start = self.s.len();
-            self.accept(&cands, &verdicts)?;
-            frontier = start..self.s.len();
+            };
+            front = self.accept(found)?;
             self.stats.levels += 1;
             if let Some(p) = self.ctx.progress {
                 p(&Progress {
                     simplices: self.s.len(),
                     level: self.stats.levels,
-                    frontier: frontier.len(),
+                    frontier: front.range.len(),
                     vertices: self.verts.len(),
                 });
             }
@@ -121,62 +111,81 @@ impl<'a, const W: usize> Engine<'a, W> {
     /// Finds the rim of a sample built elsewhere (the scan): the crossed neighbours of S
     /// outside the domain.
     pub fn complete_rim(&mut self) -> Result<()> {
-        let cands = self.neighbours(0..self.s.len())?;
-        let cands: Vec<Key<W>> = cands
-            .into_iter()
-            .filter(|c| self.rim.find(c).is_none())
-            .collect();
-        let verdicts = self.evaluate(&cands)?;
-        let (crossed, points) = self.crossed_points(&cands, &verdicts);
-        for (&i, p) in crossed.iter().zip(points.chunks_exact(self.ctx.d)) {
-            self.rim.insert(&cands[i])?;
-            self.rim_points.extend_from_slice(p);
+        let all = 0..self.s.len();
+        let front = Frontier {
+            rows: self.rows_of(all.clone())?,
+            range: all,
+            back: Back::default(),
+        };
+        if let Some(found) = self.step(&front)? {
+            for (key, p) in found.keys.iter().zip(found.points.chunks_exact(self.ctx.d)) {
+                self.rim.insert(key)?;
+                self.rim_points.extend_from_slice(p);
+            }
         }
         Ok(())
     }
 
-    /// The k-facets of the cofacets of the frontier that are neither in S nor recently
-    /// rejected, sorted and deduplicated.
-    fn neighbours(&self, frontier: Range<usize>) -> Result<Vec<Key<W>>> {
-        let codec = &self.ctx.codec;
-        let mut cands = frontier
-            .into_par_iter()
-            .with_min_len(64)
-            .try_fold(Vec::new, |mut acc, i| -> Result<Vec<Key<W>>> {
-                let own = *self.s.key(i);
-                let sigma = codec.decode(&own);
-                let mut key = [0u64; W];
-                let mut err = None;
-                sigma.for_each_cofacet(|tau| {
-                    tau.for_each_facet(|f| {
-                        if err.is_some() {
-                            return;
-                        }
-                        if let Err(e) = codec.encode(f, &mut key) {
-                            err = Some(e);
-                            return;
-                        }
-                        if key != own
-                            && self.s.find(&key).is_none()
-                            && !self.rejected[0].contains(&key)
-                            && !self.rejected[1].contains(&key)
-                        {
-                            acc.push(key);
-                        }
-                    })
-                });
-                match err {
-                    Some(e) => Err(e),
-                    None => Ok(acc),
-                }
-            })
-            .try_reduce(Vec::new, |mut a, mut b| {
-                a.append(&mut b);
-                Ok(a)
-            })?;
-        cands.par_sort_unstable();
-        cands.dedup();
-        Ok(cands)
+    /// Vertex-cache rows (k + 1 indices each) of the simplices `range` of S.
+    fn rows_of(&mut self, range: Range<usize>) -> Result<Vec<u32>> {
+        let keys: Vec<Key<W>> = range.map(|i| *self.s.key(i)).collect();
+        self.rows(&keys)
+    }
+
+    /// Vertex-cache rows (k + 1 indices each) of `cands`, evaluating the vertices not
+    /// cached yet.
+    fn rows(&mut self, cands: &[Key<W>]) -> Result<Vec<u32>> {
+        let mut idx = vec![0u32; cands.len() * (self.ctx.k + 1)];
+        let mut missing = self.vertex_indices(cands, &mut idx, false)?;
+        if !missing.is_empty() {
+            self.add_vertices(&mut missing)?;
+            let left = self.vertex_indices(cands, &mut idx, true)?;
+            debug_assert!(left.is_empty());
+        }
+        Ok(idx)
+    }
+
+    /// Evaluates f at the lattice vertices `keys` (not cached yet; sorted and deduplicated
+    /// here) and caches the values.
+    pub(super) fn add_vertices(&mut self, keys: &mut Vec<Key<W>>) -> Result<()> {
+        sort(keys);
+        keys.dedup();
+        let (d, k) = (self.ctx.d, self.ctx.k);
+        let mut lattice = vec![0i32; keys.len() * d];
+        for (v, key) in lattice.chunks_exact_mut(d).zip(keys.iter()) {
+            self.ctx.codec.decode_vertex(key, v);
+        }
+        let mut vals = vec![0.0; keys.len() * k];
+        self.ctx
+            .oracle
+            .eval_vertices(self.ctx.tri, &lattice, &mut vals)?;
+        for key in keys.iter() {
+            self.verts.insert(key)?;
+        }
+        self.values.extend_from_slice(&vals);
+        self.stats.vertices += keys.len() as u64;
+        Ok(())
+    }
+
+    /// The oracle on simplices given as vertex-cache rows, with the counters.
+    pub(super) fn decide_rows(&mut self, rows: &[u32]) -> Result<Verdicts> {
+        let n = self.ctx.k + 1;
+        let m = rows.len() / n;
+        let mut status = vec![Status::Outside; m];
+        let mut lambda = vec![0.0; m * n];
+        self.stats.exact_decisions +=
+            self.ctx
+                .oracle
+                .decide(&self.values, rows, &mut status, &mut lambda)?;
+        self.stats.oracle_calls += m as u64;
+        for s in &status {
+            match s {
+                Status::Degenerate => self.stats.degenerate += 1,
+                Status::NonFinite => self.stats.non_finite += 1,
+                _ => {}
+            }
+        }
+        Ok(Verdicts { status, lambda })
     }
 
     /// Writes the vertex-cache index of every vertex of every candidate into `idx` (k+1 per
@@ -227,58 +236,16 @@ impl<'a, const W: usize> Engine<'a, W> {
     /// Runs the oracle on `cands`: vertex values first (each lattice vertex once per trace),
     /// then the decisions.
     pub fn evaluate(&mut self, cands: &[Key<W>]) -> Result<Verdicts> {
-        let (d, k) = (self.ctx.d, self.ctx.k);
-        let n = k + 1;
-        let mut idx = vec![0u32; cands.len() * n];
-        let mut missing = self.vertex_indices(cands, &mut idx, false)?;
-        if !missing.is_empty() {
-            missing.par_sort_unstable();
-            missing.dedup();
-            let mut lattice = vec![0i32; missing.len() * d];
-            lattice
-                .par_chunks_mut(d)
-                .zip(&missing)
-                .for_each(|(v, key)| self.ctx.codec.decode_vertex(key, v));
-            let mut vals = vec![0.0; missing.len() * k];
-            self.ctx
-                .oracle
-                .eval_vertices(self.ctx.tri, &lattice, &mut vals)?;
-            for key in &missing {
-                self.verts.insert(key)?;
-            }
-            self.values.extend_from_slice(&vals);
-            self.stats.vertices += missing.len() as u64;
-            let left = self.vertex_indices(cands, &mut idx, true)?;
-            debug_assert!(left.is_empty());
-        }
-        let mut status = vec![Status::Outside; cands.len()];
-        let mut lambda = vec![0.0; cands.len() * n];
-        self.stats.exact_decisions +=
-            self.ctx
-                .oracle
-                .decide(&self.values, &idx, &mut status, &mut lambda)?;
-        self.stats.oracle_calls += cands.len() as u64;
-        for s in &status {
-            match s {
-                Status::Degenerate => self.stats.degenerate += 1,
-                Status::NonFinite => self.stats.non_finite += 1,
-                _ => {}
-            }
-        }
-        Ok(Verdicts { status, lambda })
+        let idx = self.rows(cands)?;
+        self.decide_rows(&idx)
     }
 
     /// The crossing point of candidate `key` with barycentric coordinates `lambda`.
     pub fn point(&self, key: &Key<W>, lambda: &[f64], out: &mut [f64]) {
-        let d = self.ctx.d;
-        out.fill(0.0);
-        let mut x = [0.0f64; crate::triangulation::MAX_DIM];
-        self.ctx.codec.decode(key).for_each_vertex(|i, v| {
-            self.ctx.tri.vertex_coords(v, &mut x[..d]);
-            for (o, xi) in out.iter_mut().zip(&x[..d]) {
-                *o += lambda[i] * xi;
-            }
-        });
+        let s = self.ctx.codec.decode(key);
+        self.ctx
+            .tri
+            .barycentric_point(lambda, |i, v| s.vertex_into(i, v), out);
     }
 
     /// The crossed candidates (their indices) and their crossing points, d per crossed one,
@@ -297,40 +264,33 @@ impl<'a, const W: usize> Engine<'a, W> {
         (crossed, points)
     }
 
-    /// Puts the crossed candidates that lie in the domain into S (in candidate order), the
-    /// crossed ones outside it into the rim, and the others into the current rejected set.
-    pub fn accept(&mut self, cands: &[Key<W>], v: &Verdicts) -> Result<()> {
-        let d = self.ctx.d;
-        let (crossed, points) = self.crossed_points(cands, v);
-        let mut rejected = std::mem::take(&mut self.rejected[0]);
-        rejected.clear();
-        let mut next = crossed.iter().zip(points.chunks_exact(d)).peekable();
-        for (i, key) in cands.iter().enumerate() {
-            let hit = match next.peek() {
-                Some(&(&j, p)) if j == i => {
-                    next.next();
-                    Some(p)
-                }
-                _ => None,
-            };
-            match hit {
-                Some(p) if self.ctx.domain.contains(p) => {
-                    self.s.insert(key)?;
-                    self.points.extend_from_slice(p);
-                }
-                Some(p) => {
-                    if self.rim.find(key).is_none() {
-                        self.rim.insert(key)?;
-                        self.rim_points.extend_from_slice(p);
-                    }
-                    rejected.insert(*key);
-                }
-                None => {
-                    rejected.insert(*key);
-                }
+    /// Puts what a level found into S where its point lies in the domain (in key order),
+    /// into the rim otherwise; returns the new simplices of S as the next frontier.
+    pub fn accept(&mut self, found: Found<W>) -> Result<Frontier> {
+        let (d, n) = (self.ctx.d, self.ctx.k + 1);
+        let start = self.s.len();
+        let (mut rows, mut back) = (Vec::new(), Back::default());
+        for (i, ((key, p), row)) in found
+            .keys
+            .iter()
+            .zip(found.points.chunks_exact(d))
+            .zip(found.rows.chunks_exact(n))
+            .enumerate()
+        {
+            if self.ctx.domain.contains(p) {
+                self.s.insert(key)?;
+                self.points.extend_from_slice(p);
+                rows.extend_from_slice(row);
+                back.push_from(&found.back, i);
+            } else {
+                self.rim.insert(key)?;
+                self.rim_points.extend_from_slice(p);
             }
         }
-        self.rejected[0] = std::mem::replace(&mut self.rejected[1], rejected);
-        Ok(())
+        Ok(Frontier {
+            range: start..self.s.len(),
+            rows,
+            back,
+        })
     }
 }

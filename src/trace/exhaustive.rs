@@ -288,14 +288,11 @@ pub(crate) fn scan<const W: usize>(
                 let lam = &lambda[i * (k + 1)..(i + 1) * (k + 1)];
                 let mut point = vec![0.0; d];
                 let mut v = [0i32; MAX_DIM];
-                let mut x = [0.0f64; MAX_DIM];
-                for (j, &vi) in row.iter().enumerate() {
-                    grid.coords(vi as usize, &mut v[..d]);
-                    ctx.tri.vertex_coords(&v[..d], &mut x[..d]);
-                    for (p, xi) in point.iter_mut().zip(&x[..d]) {
-                        *p += lam[j] * xi;
-                    }
-                }
+                ctx.tri.barycentric_point(
+                    lam,
+                    |j, out| grid.coords(row[j] as usize, out),
+                    &mut point,
+                );
                 if !ctx.domain.contains(&point) {
                     return Ok(None);
                 }

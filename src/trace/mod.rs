@@ -19,6 +19,7 @@
 
 mod engine;
 mod exhaustive;
+mod level;
 mod oracle;
 mod region;
 mod seeds;
@@ -130,11 +131,14 @@ pub struct TraceStats {
     pub levels: u64,
     /// k-simplices sent to the oracle.
     pub oracle_calls: u64,
+    /// Cofacets whose other crossed facet was found by testing all their facets, where the
+    /// pivot could not run or named a facet the oracle rejected.
+    pub pivot_fallbacks: u64,
     /// Decisions taken by the exact rational path.
     pub exact_decisions: u64,
     /// Candidates with a singular labelling matrix.
     pub degenerate: u64,
-    /// Candidates with a non-finite vertex value.
+    /// Candidates, or cofacets of crossed simplices, with a non-finite vertex value.
     pub non_finite: u64,
     /// Lattice vertices where f was evaluated.
     pub vertices: u64,
@@ -239,6 +243,9 @@ pub(crate) struct TraceContext<'a> {
     pub max_memory: u64,
     pub cancel: Option<&'a AtomicBool>,
     pub progress: Option<&'a (dyn Fn(&Progress) + Sync)>,
+    /// Makes the pivot name a wrong facet, to test the fallback (unit tests only).
+    #[cfg(test)]
+    pub scramble_pivots: bool,
 }
 
 /// Calls `$f::<W>($args)` with W the supported key width at least `$words`.
@@ -293,6 +300,8 @@ fn context<'a>(
         max_memory: opts.max_memory,
         cancel: opts.cancel.as_deref(),
         progress: opts.progress,
+        #[cfg(test)]
+        scramble_pivots: false,
     })
 }
 
@@ -341,7 +350,9 @@ pub fn trace(
         seeds.push(p);
     }
     let words = ctx.codec.words();
-    with_width!(words, trace_with(f, ctx, &seeds, search, opts.search_seed))
+    // On a worker of the pool, levels too small to split run on this thread with no
+    // hand-over to another.
+    rayon::scope(|_| with_width!(words, trace_with(f, ctx, &seeds, search, opts.search_seed)))
 }
 
 fn trace_with<const W: usize>(
@@ -386,7 +397,7 @@ pub fn exhaustive(
         ));
     }
     let words = ctx.codec.words();
-    with_width!(words, exhaustive_with(ctx))
+    rayon::scope(|_| with_width!(words, exhaustive_with(ctx)))
 }
 
 fn exhaustive_with<const W: usize>(ctx: TraceContext) -> Result<Sample> {
@@ -405,4 +416,48 @@ fn exhaustive_with<const W: usize>(ctx: TraceContext) -> Result<Sample> {
     stats.memory_bytes = engine.bytes() as u64;
     stats.elapsed_s = start.elapsed().as_secs_f64();
     Ok(sample_from(codec, engine, stats))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::expr::preset;
+
+    /// Where the pivot names a wrong facet, the oracle rejects it and every facet of its
+    /// cofacet is tested: the trace is the same, in the same order.
+    #[test]
+    fn wrong_pivots_fall_back_to_testing_every_facet() {
+        for (name, params, edge) in [
+            ("sphere", vec![], 0.2),
+            ("flat-torus", vec![], 0.3),
+            ("3-torus", vec![], 0.8),
+        ] {
+            let mut p = preset(name, &params).unwrap();
+            p.triangulation.edge = Some(edge);
+            let tri = p.triangulation.build(p.dim()).unwrap();
+            let oracle = CpuOracle::new(&p.system);
+            let opts = TraceOptions {
+                seeds: p.seeds.clone(),
+                ..TraceOptions::default()
+            };
+            let right = trace(&p.system, &tri, &oracle, &opts).unwrap();
+            assert_eq!(right.stats.pivot_fallbacks, 0, "{name}");
+            let mut ctx = context(&p.system, &tri, &oracle, &opts).unwrap();
+            ctx.scramble_pivots = true;
+            let seeds: Vec<Vec<f64>> = p
+                .seeds
+                .iter()
+                .map(|s| crate::expr::newton_project(&p.system, s, SEED_TOLERANCE).unwrap())
+                .collect();
+            let words = ctx.codec.words();
+            let wrong = with_width!(words, trace_with(&p.system, ctx, &seeds, 0, 1)).unwrap();
+            assert!(wrong.stats.pivot_fallbacks > 0, "{name}: no fallback");
+            assert_eq!(right.len(), wrong.len(), "{name}");
+            assert!(
+                (0..right.len()).all(|i| right.key(i) == wrong.key(i)),
+                "{name}: the samples differ"
+            );
+            assert_eq!(right.points(), wrong.points(), "{name}");
+        }
+    }
 }

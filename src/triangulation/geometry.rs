@@ -436,6 +436,31 @@ impl Triangulation {
         self.point_from_lattice(&u[..self.d], x);
     }
 
+    /// The point with barycentric coordinates `lambda` in the simplex whose lattice vertices
+    /// `vertex(i, out)` writes: u = v_0 + sum_i lambda_i (v_i - v_0) (exact integer
+    /// differences), then x = b + A u.
+    pub fn barycentric_point(
+        &self,
+        lambda: &[f64],
+        mut vertex: impl FnMut(usize, &mut [i32]),
+        x: &mut [f64],
+    ) {
+        let d = self.d;
+        let (mut v0, mut v) = ([0i32; super::MAX_DIM], [0i32; super::MAX_DIM]);
+        let mut u = [0.0f64; super::MAX_DIM];
+        vertex(0, &mut v0[..d]);
+        for (i, &l) in lambda.iter().enumerate().skip(1) {
+            vertex(i, &mut v[..d]);
+            for c in 0..d {
+                u[c] += l * (v[c] - v0[c]) as f64;
+            }
+        }
+        for c in 0..d {
+            u[c] += v0[c] as f64;
+        }
+        self.point_from_lattice(&u[..d], x);
+    }
+
     /// Ambient coordinates of a (real) lattice point u: x = b + A u.
     #[inline]
     pub fn point_from_lattice(&self, u: &[f64], x: &mut [f64]) {

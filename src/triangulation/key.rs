@@ -104,6 +104,27 @@ impl KeyCodec {
             .expect("key decodes to a valid simplex")
     }
 
+    /// Unpacks a key into `out`, reusing its storage (no validation: keys come from
+    /// [`KeyCodec::encode`]).
+    pub fn decode_into(&self, key: &[u64], out: &mut Simplex) {
+        let bias = 1i64 << (self.coord_bits - 1);
+        let mut r = BitReader { words: key, pos: 0 };
+        let (v0, parts) = out.reset(self.d, self.l + 1);
+        for c in v0.iter_mut() {
+            *c = (r.get(self.coord_bits) as i64 - bias) as i32;
+        }
+        parts.fill(0);
+        parts[self.l] |= 1 << self.d;
+        for e in 0..self.d {
+            let p = if self.part_bits > 0 {
+                r.get(self.part_bits) as usize
+            } else {
+                0
+            };
+            parts[p] |= 1 << e;
+        }
+    }
+
     /// Bits per base coordinate.
     pub fn coord_bits(&self) -> u32 {
         self.coord_bits

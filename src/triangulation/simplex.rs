@@ -77,6 +77,14 @@ impl Simplex {
         }
     }
 
+    /// Makes this an l-simplex of R^d with `n_parts` = l + 1 parts, returning its base
+    /// vertex and parts to fill in (canonical form is the caller's duty).
+    pub(crate) fn reset(&mut self, d: usize, n_parts: usize) -> (&mut [i32], &mut [u64]) {
+        self.d = d as u8;
+        self.n_parts = n_parts as u8;
+        (&mut self.v0[..d], &mut self.parts[..n_parts])
+    }
+
     /// The vertex `v` as a 0-simplex.
     pub fn vertex(v: &[i32]) -> Result<Self> {
         let d = v.len();
@@ -322,6 +330,26 @@ impl Simplex {
         }
     }
 
+    /// Writes the facet opposite vertex `q` (0..=l) into `out`, in O(d + l): its vertices are
+    /// this simplex's in order, without v_q.
+    pub fn facet_into(&self, q: usize, out: &mut Simplex) {
+        let l = self.dim();
+        debug_assert!(l > 0 && q <= l);
+        let d = self.d as usize;
+        out.d = self.d;
+        out.n_parts = l as u8;
+        out.v0[..d].copy_from_slice(&self.v0[..d]);
+        if q == 0 {
+            shift_by_mask(&mut out.v0[..d], self.parts[0], d);
+            out.parts[..l - 1].copy_from_slice(&self.parts[1..l]);
+            out.parts[l - 1] = self.parts[l] | self.parts[0];
+        } else {
+            out.parts[..q - 1].copy_from_slice(&self.parts[..q - 1]);
+            out.parts[q - 1] = self.parts[q - 1] | self.parts[q];
+            out.parts[q..l].copy_from_slice(&self.parts[q + 1..=l]);
+        }
+    }
+
     /// All facets (see [`Simplex::for_each_facet`]).
     pub fn facets(&self) -> Vec<Simplex> {
         let mut out = Vec::with_capacity(self.n_parts as usize);
@@ -340,6 +368,12 @@ impl Simplex {
     /// Calls `f` on every cofacet (each part split into two ordered non-empty sub-parts), in
     /// O(d) per cofacet.
     pub fn for_each_cofacet(&self, mut f: impl FnMut(&Simplex)) {
+        self.for_each_cofacet_apex(|c, _| f(c));
+    }
+
+    /// Like [`Simplex::for_each_cofacet`], with the position `p` of the new vertex in the
+    /// cofacet: its vertices are this simplex's in order with the new one inserted at `p`.
+    pub fn for_each_cofacet_apex(&self, mut f: impl FnMut(&Simplex, usize)) {
         let d = self.d as usize;
         let n = self.n_parts as usize;
         if n == d + 1 {
@@ -363,13 +397,14 @@ impl Simplex {
                     out.parts[0] = rest;
                     out.parts[1..n].copy_from_slice(&self.parts[..n - 1]);
                     out.parts[n] = s;
+                    f(&out, 0);
                 } else {
                     out.parts[..i].copy_from_slice(&self.parts[..i]);
                     out.parts[i] = s;
                     out.parts[i + 1] = rest;
                     out.parts[i + 2..n + 1].copy_from_slice(&self.parts[i + 1..n]);
+                    f(&out, i + 1);
                 }
-                f(&out);
                 s = (s - 1) & m;
             }
         }

@@ -1,0 +1,543 @@
+//! One level of the trace. The crossed k-simplices found last are the frontier. For each
+//! frontier simplex sigma and each of its cofacets tau, the pivot of PL continuation (door
+//! in, door out: [`crate::cpu::pivot`]) names the other crossed facet of tau; the named
+//! facets not yet known go to the oracle as one batch, which confirms them and gives their
+//! points. Where the oracle rejects a named facet (a rounding slip of the unguarded pivot),
+//! every facet of that tau is tested, so a level finds exactly the crossed k-facets of the
+//! frontier's cofacets, as if every one had been tested. Every order here is a sorted
+//! order, so the output does not depend on threads.
+
+use std::ops::Range;
+
+use rayon::prelude::*;
+
+use super::engine::{Engine, Verdicts};
+use super::table::Key;
+use crate::cpu::pivot::Pivot;
+use crate::error::Result;
+use crate::triangulation::{Simplex, MAX_DIM};
+
+/// Fewest frontier simplices per parallel work item.
+const SIGMA_CHUNK: usize = 24;
+/// Fewest found simplices per parallel work item (points).
+const POINT_CHUNK: usize = 128;
+/// Below this length a sort runs on the calling thread.
+const PAR_SORT_MIN: usize = 1 << 14;
+
+/// A k-simplex to test: the facet of cofacet tau number `via` of frontier simplex `from`
+/// that lacks tau's vertex `drop`. Tau's new vertex sits at `apex_at` and has cache index
+/// `apex`. `fallback` when the facet was not named by a pivot but listed with all the
+/// facets of its tau.
+#[derive(Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
+struct Candidate<const W: usize> {
+    key: Key<W>,
+    from: u32,
+    via: u32,
+    apex: u32,
+    apex_at: u8,
+    drop: u8,
+    fallback: bool,
+}
+
+/// What naming the exits of some frontier simplices gives.
+struct Named<const W: usize> {
+    cands: Vec<Candidate<W>>,
+    /// Cofacets whose new vertex is not cached yet: (from, via, vertex key).
+    deferred: Vec<(u32, u32, Key<W>)>,
+    /// Cofacets whose facets were all listed (the pivot could not run).
+    fallbacks: u64,
+    /// Cofacets with a non-finite value at their new vertex (no other crossed facet).
+    non_finite: u64,
+}
+
+impl<const W: usize> Named<W> {
+    fn new() -> Self {
+        Named {
+            cands: Vec::new(),
+            deferred: Vec::new(),
+            fallbacks: 0,
+            non_finite: 0,
+        }
+    }
+
+    fn append(&mut self, mut other: Named<W>) {
+        self.cands.append(&mut other.cands);
+        self.deferred.append(&mut other.deferred);
+        self.fallbacks += other.fallbacks;
+        self.non_finite += other.non_finite;
+    }
+}
+
+/// The distinct keys of a sorted candidate list with their rows and verdicts.
+struct Decided<const W: usize> {
+    keys: Vec<Key<W>>,
+    rows: Vec<u32>,
+    verdicts: Verdicts,
+    back: Back,
+}
+
+impl<const W: usize> Decided<W> {
+    fn index(&self, key: &Key<W>) -> Option<usize> {
+        self.keys.binary_search(key).ok()
+    }
+
+    /// Whether `key` is among these and crossed.
+    fn crossed(&self, key: &Key<W>) -> bool {
+        self.index(key)
+            .is_some_and(|i| self.verdicts.status[i].crossed())
+    }
+}
+
+/// The crossed simplices a level found, sorted by key, with their vertex-cache rows,
+/// their points and their way back (see [`Frontier`]).
+pub(crate) struct Found<const W: usize> {
+    pub keys: Vec<Key<W>>,
+    pub rows: Vec<u32>,
+    pub points: Vec<f64>,
+    pub back: Back,
+}
+
+/// For each simplex of a list, the cache indices of the new vertices of its cofacets known
+/// to hold another crossed simplex of S already (the cofacets it was found through): the
+/// pivot there would only name a known simplex, so they are skipped.
+#[derive(Default)]
+pub(crate) struct Back {
+    /// `vertices[end[i - 1]..end[i]]` belong to simplex i.
+    end: Vec<u32>,
+    vertices: Vec<u32>,
+}
+
+impl Back {
+    fn of(&self, i: usize) -> &[u32] {
+        if self.end.is_empty() {
+            return &[];
+        }
+        let start = if i == 0 { 0 } else { self.end[i - 1] as usize };
+        &self.vertices[start..self.end[i] as usize]
+    }
+
+    /// Keeps simplex i's list (call in order).
+    pub fn push_from(&mut self, other: &Back, i: usize) {
+        self.vertices.extend_from_slice(other.of(i));
+        self.end.push(self.vertices.len() as u32);
+    }
+}
+
+/// The simplices a level starts from (a range of S) with their vertex-cache rows
+/// (k + 1 each) and their way back.
+pub(crate) struct Frontier {
+    pub range: Range<usize>,
+    pub rows: Vec<u32>,
+    pub back: Back,
+}
+
+/// Runs `f` on consecutive ranges covering `0..len`, about four per thread and at least
+/// `min_chunk` items each, in parallel when there is more than one; returns the results
+/// in order.
+pub(crate) fn par_ranges<T: Send>(
+    len: usize,
+    min_chunk: usize,
+    f: impl Fn(Range<usize>) -> T + Sync,
+) -> Vec<T> {
+    let chunk = len
+        .div_ceil(4 * rayon::current_num_threads())
+        .max(min_chunk)
+        .max(1);
+    let parts = len.div_ceil(chunk);
+    if parts <= 1 {
+        return vec![f(0..len)];
+    }
+    (0..parts)
+        .into_par_iter()
+        .map(|c| f(c * chunk..((c + 1) * chunk).min(len)))
+        .collect()
+}
+
+/// Sorts, in parallel when it pays.
+pub(crate) fn sort<T: Ord + Send>(v: &mut [T]) {
+    if v.len() < PAR_SORT_MIN {
+        v.sort_unstable();
+    } else {
+        v.par_sort_unstable();
+    }
+}
+
+/// Per-thread work space for naming exits: the frontier simplex being read, and the rest.
+struct Namer<'e, 'a, const W: usize> {
+    frontier: &'e Frontier,
+    sigma: Simplex,
+    work: Work<'e, 'a, W>,
+}
+
+struct Work<'e, 'a, const W: usize> {
+    engine: &'e Engine<'a, W>,
+    pivot: Pivot,
+    facet: Simplex,
+    key: Key<W>,
+    v: [i32; MAX_DIM],
+    /// Lattice coordinates of the new vertices of the cofacets to skip, d each.
+    skip: Vec<i32>,
+    out: Named<W>,
+}
+
+impl<'e, 'a, const W: usize> Namer<'e, 'a, W> {
+    fn new(engine: &'e Engine<'a, W>, frontier: &'e Frontier) -> Self {
+        let blank = Simplex::vertex(&[0; MAX_DIM][..engine.ctx.d]).expect("d was checked");
+        Namer {
+            frontier,
+            sigma: blank.clone(),
+            work: Work {
+                engine,
+                pivot: Pivot::new(engine.ctx.k),
+                facet: blank,
+                key: [0; W],
+                v: [0; MAX_DIM],
+                skip: Vec::new(),
+                out: Named::new(),
+            },
+        }
+    }
+
+    /// Loads frontier simplex `i` and its cofacets to skip; false when its L is
+    /// numerically singular.
+    fn load(&mut self, i: usize) -> bool {
+        let e = self.work.engine;
+        let (d, k) = (e.ctx.d, e.ctx.k);
+        e.ctx
+            .codec
+            .decode_into(e.s.key(self.frontier.range.start + i), &mut self.sigma);
+        let back = self.frontier.back.of(i);
+        self.work.skip.resize(back.len() * d, 0);
+        for (&b, v) in back.iter().zip(self.work.skip.chunks_exact_mut(d)) {
+            e.ctx.codec.decode_vertex(e.verts.key(b as usize), v);
+        }
+        let row = &self.frontier.rows[i * (k + 1)..(i + 1) * (k + 1)];
+        let values = &e.values;
+        self.work.pivot.load(|j, c| values[row[j] as usize * k + c])
+    }
+
+    /// Names the exit of every cofacet of frontier simplex `i` whose new vertex is cached,
+    /// and defers the others.
+    fn all_cofacets(&mut self, i: usize) -> Result<()> {
+        let ok = self.load(i);
+        let mut via = 0u32;
+        let mut err = Ok(());
+        self.sigma.for_each_cofacet_apex(|tau, p| {
+            if err.is_ok() {
+                err = self.work.cofacet(tau, p, i as u32, via, None, ok);
+            }
+            via += 1;
+        });
+        err
+    }
+
+    /// Names the exits of the cofacets `vias` (sorted, with their new vertices' cache
+    /// indices) of frontier simplex `i`.
+    fn some_cofacets(&mut self, i: usize, vias: &[(u32, u32)]) -> Result<()> {
+        let ok = self.load(i);
+        let mut via = 0u32;
+        let mut next = vias.iter().peekable();
+        let mut err = Ok(());
+        self.sigma.for_each_cofacet_apex(|tau, p| {
+            if let Some(&&(v, apex)) = next.peek() {
+                if v == via && err.is_ok() {
+                    next.next();
+                    err = self.work.cofacet(tau, p, i as u32, via, Some(apex), ok);
+                }
+            }
+            via += 1;
+        });
+        err
+    }
+}
+
+impl<const W: usize> Work<'_, '_, W> {
+    /// Cofacet `tau` (new vertex at `p`, cache index `apex` if known) of frontier simplex
+    /// `from`, whose pivot is loaded (`ok`).
+    fn cofacet(
+        &mut self,
+        tau: &Simplex,
+        p: usize,
+        from: u32,
+        via: u32,
+        apex: Option<u32>,
+        ok: bool,
+    ) -> Result<()> {
+        let e = self.engine;
+        let (d, k) = (e.ctx.d, e.ctx.k);
+        let apex = match apex {
+            Some(a) => a,
+            None => {
+                tau.vertex_into(p, &mut self.v[..d]);
+                if self.skip.chunks_exact(d).any(|b| b == &self.v[..d]) {
+                    return Ok(());
+                }
+                e.ctx.codec.encode_vertex(&self.v[..d], &mut self.key)?;
+                match e.verts.find(&self.key) {
+                    Some(a) => a,
+                    None => {
+                        self.out.deferred.push((from, via, self.key));
+                        return Ok(());
+                    }
+                }
+            }
+        };
+        let fw = &e.values[apex as usize * k..(apex as usize + 1) * k];
+        if fw.iter().any(|v| !v.is_finite()) {
+            // Every facet of tau but the frontier simplex has a non-finite vertex value.
+            self.out.non_finite += 1;
+            return Ok(());
+        }
+        let Some(r) = ok.then(|| self.pivot.exit(fw)).flatten() else {
+            self.out.fallbacks += 1;
+            return e.all_facets(tau, (p, apex), from, via, None, &mut self.out.cands);
+        };
+        #[cfg(test)]
+        let r = if e.ctx.scramble_pivots {
+            (r + 1) % (k + 1)
+        } else {
+            r
+        };
+        // Vertex r of sigma sits at r in tau before the new vertex, at r + 1 after it.
+        let q = if r < p { r } else { r + 1 };
+        tau.facet_into(q, &mut self.facet);
+        e.ctx.codec.encode(&self.facet, &mut self.key)?;
+        if e.is_new(&self.key) {
+            self.out.cands.push(Candidate {
+                key: self.key,
+                from,
+                via,
+                apex,
+                apex_at: p as u8,
+                drop: q as u8,
+                fallback: false,
+            });
+        }
+        Ok(())
+    }
+}
+
+impl<const W: usize> Engine<'_, W> {
+    /// One level: the crossed k-facets of the frontier's cofacets that are neither in S nor
+    /// in the rim, sorted by key, with their rows and points. `rows` holds the frontier's
+    /// vertex-cache rows. `None` when the trace must stop.
+    pub(super) fn step(&mut self, frontier: &Frontier) -> Result<Option<Found<W>>> {
+        if frontier.range.is_empty() {
+            return Ok(Some(self.found([])));
+        }
+        let rows = &frontier.rows[..];
+        let (d, n) = (self.ctx.d, self.ctx.k + 1);
+        // Round 1: the pivot names one facet per cofacet.
+        let parts = par_ranges(frontier.range.len(), SIGMA_CHUNK, |r| -> Result<Named<W>> {
+            let mut namer = Namer::new(self, frontier);
+            for i in r {
+                namer.all_cofacets(i)?;
+            }
+            Ok(namer.work.out)
+        });
+        let mut named = Named::new();
+        for part in parts {
+            named.append(part?);
+        }
+        let per_cand = size_of::<Candidate<W>>() + n * 12 + d * 8 + 16;
+        if self.must_stop((named.cands.len() + 2 * named.deferred.len()) * per_cand) {
+            return Ok(None);
+        }
+        if !named.deferred.is_empty() {
+            // Cofacets whose new vertex was not cached: evaluate f there, then name them.
+            let deferred = std::mem::take(&mut named.deferred);
+            let mut keys: Vec<Key<W>> = deferred.iter().map(|t| t.2).collect();
+            self.add_vertices(&mut keys)?;
+            let by_sigma: Vec<(u32, u32, u32)> = deferred
+                .iter()
+                .map(|&(from, via, key)| (from, via, self.verts.find(&key).expect("just added")))
+                .collect();
+            let starts: Vec<usize> = (0..by_sigma.len())
+                .filter(|&i| i == 0 || by_sigma[i - 1].0 != by_sigma[i].0)
+                .collect();
+            let parts = par_ranges(starts.len(), SIGMA_CHUNK, |r| -> Result<Named<W>> {
+                let mut namer = Namer::new(self, frontier);
+                let mut vias = Vec::new();
+                for s in r {
+                    let end = starts.get(s + 1).copied().unwrap_or(by_sigma.len());
+                    vias.clear();
+                    vias.extend(by_sigma[starts[s]..end].iter().map(|t| (t.1, t.2)));
+                    namer.some_cofacets(by_sigma[starts[s]].0 as usize, &vias)?;
+                }
+                Ok(namer.work.out)
+            });
+            for part in parts {
+                named.append(part?);
+            }
+        }
+        self.stats.pivot_fallbacks += named.fallbacks;
+        self.stats.non_finite += named.non_finite;
+        let mut named = named.cands;
+        sort(&mut named);
+        let first = self.decide_unique(&named, rows)?;
+
+        // Round 2: every facet of the cofacets whose named facet the oracle rejected.
+        let mut retry: Vec<(u32, u32, u32)> = named
+            .iter()
+            .filter(|c| !c.fallback && !first.crossed(&c.key))
+            .map(|c| (c.from, c.via, c.apex))
+            .collect();
+        retry.sort_unstable();
+        retry.dedup();
+        self.stats.pivot_fallbacks += retry.len() as u64;
+        let mut second = Vec::new();
+        let mut t = 0;
+        while t < retry.len() {
+            let from = retry[t].0;
+            let sigma = self
+                .ctx
+                .codec
+                .decode(self.s.key(frontier.range.start + from as usize));
+            let mut via = 0;
+            let mut err = Ok(());
+            sigma.for_each_cofacet_apex(|tau, p| {
+                if t < retry.len() && retry[t].0 == from && retry[t].1 == via && err.is_ok() {
+                    let apex = (p, retry[t].2);
+                    err = self.all_facets(tau, apex, from, via, Some(&first), &mut second);
+                    t += 1;
+                }
+                via += 1;
+            });
+            err?;
+        }
+        sort(&mut second);
+        let second = self.decide_unique(&second, rows)?;
+        Ok(Some(self.found([first, second])))
+    }
+
+    /// Whether `key` is neither in S nor in the rim.
+    #[inline]
+    fn is_new(&self, key: &Key<W>) -> bool {
+        self.s.find(key).is_none() && self.rim.find(key).is_none()
+    }
+
+    /// Pushes onto `out` every facet of `tau` (cofacet `via` of frontier simplex `from`,
+    /// new vertex at `apex.0` with cache index `apex.1`) but the frontier simplex, unless
+    /// known or already decided in `skip`.
+    fn all_facets(
+        &self,
+        tau: &Simplex,
+        apex: (usize, u32),
+        from: u32,
+        via: u32,
+        skip: Option<&Decided<W>>,
+        out: &mut Vec<Candidate<W>>,
+    ) -> Result<()> {
+        let mut facet = tau.clone();
+        let mut key = [0u64; W];
+        for q in (0..=tau.dim()).filter(|&q| q != apex.0) {
+            tau.facet_into(q, &mut facet);
+            self.ctx.codec.encode(&facet, &mut key)?;
+            if self.is_new(&key) && skip.is_none_or(|s| s.index(&key).is_none()) {
+                out.push(Candidate {
+                    key,
+                    from,
+                    via,
+                    apex: apex.1,
+                    apex_at: apex.0 as u8,
+                    drop: q as u8,
+                    fallback: true,
+                });
+            }
+        }
+        Ok(())
+    }
+
+    /// The oracle on the distinct keys of the sorted candidates `cands`; `rows` holds the
+    /// frontier's vertex-cache rows.
+    fn decide_unique(&mut self, cands: &[Candidate<W>], rows: &[u32]) -> Result<Decided<W>> {
+        let n = self.ctx.k + 1;
+        let firsts: Vec<&Candidate<W>> = cands
+            .iter()
+            .enumerate()
+            .filter(|(i, c)| *i == 0 || cands[i - 1].key != c.key)
+            .map(|(_, c)| c)
+            .collect();
+        let mut cand_rows = vec![0u32; firsts.len() * n];
+        for (c, out) in firsts.iter().zip(cand_rows.chunks_exact_mut(n)) {
+            // Tau's row is sigma's with the new vertex inserted at apex_at; the facet
+            // drops tau's vertex `drop`.
+            let sigma = &rows[c.from as usize * n..(c.from as usize + 1) * n];
+            let (p, q) = (c.apex_at as usize, c.drop as usize);
+            let tau = |t: usize| match t.cmp(&p) {
+                std::cmp::Ordering::Less => sigma[t],
+                std::cmp::Ordering::Equal => c.apex,
+                std::cmp::Ordering::Greater => sigma[t - 1],
+            };
+            for (o, t) in out.iter_mut().zip((0..=n).filter(|&t| t != q)) {
+                *o = tau(t);
+            }
+        }
+        // Each candidate's way back: the vertex of its tau it lacks (tau's other crossed
+        // facet, if it is crossed, is the frontier simplex).
+        let mut back = Back::default();
+        for (i, c) in cands.iter().enumerate() {
+            if i > 0 && cands[i - 1].key != c.key {
+                back.end.push(back.vertices.len() as u32);
+            }
+            let sigma = &rows[c.from as usize * n..(c.from as usize + 1) * n];
+            let q = c.drop as usize;
+            let p = c.apex_at as usize;
+            back.vertices.push(match q.cmp(&p) {
+                std::cmp::Ordering::Less => sigma[q],
+                std::cmp::Ordering::Equal => c.apex,
+                std::cmp::Ordering::Greater => sigma[q - 1],
+            });
+        }
+        if !cands.is_empty() {
+            back.end.push(back.vertices.len() as u32);
+        }
+        let verdicts = self.decide_rows(&cand_rows)?;
+        Ok(Decided {
+            keys: firsts.iter().map(|c| c.key).collect(),
+            rows: cand_rows,
+            verdicts,
+            back,
+        })
+    }
+
+    /// The crossed simplices of the rounds, sorted by key, with their points.
+    fn found<const R: usize>(&self, rounds: [Decided<W>; R]) -> Found<W> {
+        let (d, n) = (self.ctx.d, self.ctx.k + 1);
+        type Hit<'r, const W: usize> = (Key<W>, &'r [u32], &'r [f64], &'r [u32]);
+        let mut hits: Vec<Hit<W>> = rounds
+            .iter()
+            .flat_map(|r| {
+                (0..r.keys.len())
+                    .filter(|&i| r.verdicts.status[i].crossed())
+                    .map(move |i| {
+                        (
+                            r.keys[i],
+                            &r.rows[i * n..(i + 1) * n],
+                            &r.verdicts.lambda[i * n..(i + 1) * n],
+                            r.back.of(i),
+                        )
+                    })
+            })
+            .collect();
+        hits.sort_unstable_by_key(|h| h.0);
+        let parts = par_ranges(hits.len(), POINT_CHUNK, |r| {
+            let mut out = vec![0.0; r.len() * d];
+            for (o, h) in out.chunks_exact_mut(d).zip(&hits[r]) {
+                self.point(&h.0, h.2, o);
+            }
+            out
+        });
+        let mut back = Back::default();
+        for h in &hits {
+            back.vertices.extend_from_slice(h.3);
+            back.end.push(back.vertices.len() as u32);
+        }
+        Found {
+            keys: hits.iter().map(|h| h.0).collect(),
+            rows: hits.iter().flat_map(|h| h.1.iter().copied()).collect(),
+            points: parts.concat(),
+            back,
+        }
+    }
+}
