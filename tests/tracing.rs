@@ -51,13 +51,13 @@ fn assert_points_accurate(p: &Problem, s: &Sample, edge: f64, c: f64) {
     let mut f = vec![0.0; p.system.codim()];
     let mut worst: f64 = 0.0;
     for (sigma, x) in s.iter() {
-        let carrier = tri.locate_with_tolerance(x, 1e-9).unwrap();
+        let carrier = tri.locate_with_tolerance(&x, 1e-9).unwrap();
         assert!(
             sigma.contains(&carrier),
             "{}: point {x:?} lies in {carrier}, not in {sigma}",
             p.name
         );
-        p.system.eval_batch(x, &mut f);
+        p.system.eval_batch(&x, &mut f);
         worst = f.iter().fold(worst, |m, v| m.max(v.abs()));
     }
     assert!(
@@ -279,7 +279,7 @@ fn non_compact_graph_is_traced_inside_its_box() {
     assert!(s.len() > 100);
     let b = bbox.clone().unwrap();
     for (_, x) in s.iter() {
-        assert!(isomesh::trace::in_box(&b, x));
+        assert!(isomesh::trace::in_box(&b, &x));
     }
     let e = run(&p, bbox, true);
     assert_eq!(s.sorted_keys(), e.sorted_keys());

@@ -147,7 +147,7 @@ fn cofacet_pairs<const W: usize>(
 fn clip(s: &Sample, domain: &Domain, raw: Vec<RawLevel>, d: usize, m: usize) -> Complex {
     let n = s.len();
     // Boundary vertices, one per mixed edge, where the edge leaves the domain.
-    let mut points = s.points().to_vec();
+    let mut points = s.points();
     let edges = raw.first();
     if let Some(e) = edges {
         let cut: Vec<f64> = (0..e.cells.len())
@@ -157,11 +157,11 @@ fn clip(s: &Sample, domain: &Domain, raw: Vec<RawLevel>, d: usize, m: usize) -> 
                 let f = e.cells.facets(i);
                 let (a, b) = (f[0] as usize, f[1] as usize);
                 let (a, b) = if a < n { (a, b) } else { (b, a) };
-                let (pa, pb) = (s.point(a), s.rim_point(b - n));
+                let (pa, pb) = (&points[a * d..(a + 1) * d], s.rim_point(b - n));
                 let t = domain.exit(pa, pb);
                 pa.iter()
                     .zip(pb)
-                    .map(move |(x, y)| x + t * (y - x))
+                    .map(|(x, y)| x + t * (y - x))
                     .collect::<Vec<_>>()
             })
             .collect();

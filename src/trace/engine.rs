@@ -18,11 +18,11 @@ const MISSING: u32 = u32::MAX;
 /// Candidates per parallel work item.
 const CHUNK: usize = 512;
 
-/// The state of one trace: the sample S, its points, the rim and the vertex-value cache.
+/// The state of one trace: the sample S (keys only: points are computed again from the
+/// vertex cache when asked for), the rim and the vertex-value cache.
 pub(crate) struct Engine<'a, const W: usize> {
     pub ctx: TraceContext<'a>,
     pub s: Table<W>,
-    pub points: Vec<f64>,
     /// Crossed simplices whose point lies outside the domain, next to S (the far ends of
     /// the edges of M-hat that the domain's boundary cuts).
     pub rim: Table<W>,
@@ -44,7 +44,6 @@ impl<'a, const W: usize> Engine<'a, W> {
         Engine {
             ctx,
             s: Table::new(),
-            points: Vec::new(),
             rim: Table::new(),
             rim_points: Vec::new(),
             verts: Table::new(),
@@ -56,7 +55,6 @@ impl<'a, const W: usize> Engine<'a, W> {
     /// Bytes held by the trace's containers.
     pub fn bytes(&self) -> usize {
         self.s.bytes()
-            + self.points.capacity() * 8
             + self.rim.bytes()
             + self.rim_points.capacity() * 8
             + self.verts.bytes()
@@ -279,7 +277,6 @@ impl<'a, const W: usize> Engine<'a, W> {
         {
             if self.ctx.domain.contains(p) {
                 self.s.insert(key)?;
-                self.points.extend_from_slice(p);
                 rows.extend_from_slice(row);
                 back.push_from(&found.back, i);
             } else {

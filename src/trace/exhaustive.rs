@@ -198,14 +198,11 @@ fn near_grid(ctx: &TraceContext, near: &[[f64; 2]]) -> Result<Grid> {
     Ok(Grid { lo, n, rows, total })
 }
 
-/// A crossed simplex in the box: its key and point.
-type Hit<const W: usize> = (Key<W>, Vec<f64>);
-
-/// Scans the box; returns S (keys in sorted order, W words each), its points and counters.
+/// Scans the box; returns S (keys in sorted order, W words each) and counters.
 pub(crate) fn scan<const W: usize>(
     ctx: &TraceContext,
     bbox: &[[f64; 2]],
-) -> Result<(Table<W>, Vec<f64>, TraceStats)> {
+) -> Result<(Table<W>, TraceStats)> {
     let (d, k) = (ctx.d, ctx.k);
     if d > MAX_SCAN_DIM {
         return Err(Error::Trace(format!(
@@ -256,7 +253,7 @@ pub(crate) fn scan<const W: usize>(
     }
 
     let codec = &ctx.codec;
-    let mut found: Vec<Hit<W>> = Vec::new();
+    let mut found: Vec<Key<W>> = Vec::new();
     for batch in cubes.chunks(CUBES_PER_BATCH) {
         cancelled(ctx)?;
         let chains: Vec<(Vec<u32>, Vec<u64>)> = batch
@@ -279,7 +276,7 @@ pub(crate) fn scan<const W: usize>(
                 _ => {}
             }
         }
-        let hits: Vec<Result<Option<Hit<W>>>> = (0..m)
+        let hits: Vec<Result<Option<Key<W>>>> = (0..m)
             .into_par_iter()
             .filter(|&i| status[i].crossed())
             .map(|i| {
@@ -308,23 +305,21 @@ pub(crate) fn scan<const W: usize>(
                 let simplex = Simplex::from_masks(&v[..d], &parts[..=k])?;
                 let mut key = [0u64; W];
                 codec.encode(&simplex, &mut key)?;
-                Ok(Some((key, point)))
+                Ok(Some(key))
             })
             .collect();
         for h in hits {
-            if let Some(kp) = h? {
-                found.push(kp);
+            if let Some(key) = h? {
+                found.push(key);
             }
         }
     }
-    found.par_sort_unstable_by(|a, b| a.0.cmp(&b.0));
+    found.par_sort_unstable();
     let mut table = Table::new();
-    let mut points = Vec::with_capacity(found.len() * d);
-    for (key, p) in &found {
+    for key in &found {
         table.insert(key)?;
-        points.extend_from_slice(p);
     }
-    Ok((table, points, stats))
+    Ok((table, stats))
 }
 
 fn cancelled(ctx: &TraceContext) -> Result<()> {

@@ -36,11 +36,13 @@ pub use oracle::{CpuOracle, Oracle};
 pub use region::{coord_bits, in_box, lattice_bounds, Domain};
 pub use seeds::SEED_TOLERANCE;
 
+use crate::cpu::decide::Decider;
 use crate::error::{Error, Result};
 use crate::expr::spec::check_box;
 use crate::expr::ImplicitFunction;
-use crate::triangulation::{KeyCodec, Simplex, Triangulation};
+use crate::triangulation::{KeyCodec, KeySet, Simplex, Triangulation};
 use engine::Engine;
+use rayon::prelude::*;
 
 /// Box samples for the automatic seed search when no seed is given.
 pub const DEFAULT_SEARCH_SAMPLES: usize = 512;
@@ -156,26 +158,41 @@ pub struct TraceStats {
 
 /// The sample S: crossed k-simplices (as compact keys) with their points, in a deterministic
 /// order (trace: level by level, sorted within a level; scan: sorted keys).
+///
+/// S stores keys, not points: it keeps the values of f at the lattice vertices of its
+/// simplices, and a point is the intersection test run again on them (the same f64
+/// arithmetic as the trace, so the same bits, whichever backend traced). That is 8 d bytes
+/// per simplex less to hold; [`Sample::points`] computes them all when needed.
 #[derive(Clone, Debug)]
 pub struct Sample {
     codec: KeyCodec,
     stride: usize,
     keys: Vec<u64>,
-    points: Vec<f64>,
+    vertices: KeySet,
+    values: Vec<f64>,
+    tri: Triangulation,
     rim_keys: Vec<u64>,
     rim_points: Vec<f64>,
     /// What it took.
     pub stats: TraceStats,
 }
 
+/// Work space for computing points of a sample.
+struct PointWork {
+    decider: Decider,
+    values: Vec<f64>,
+    lambda: Vec<f64>,
+    vkey: Vec<u64>,
+}
+
 impl Sample {
     /// Number of crossed k-simplices.
     pub fn len(&self) -> usize {
-        self.points.len() / self.ambient_dim()
+        self.keys.len() / self.stride
     }
     /// Whether S is empty.
     pub fn is_empty(&self) -> bool {
-        self.points.is_empty()
+        self.keys.is_empty()
     }
     /// d.
     pub fn ambient_dim(&self) -> usize {
@@ -189,6 +206,10 @@ impl Sample {
     pub fn codec(&self) -> &KeyCodec {
         &self.codec
     }
+    /// The triangulation the simplices belong to.
+    pub fn triangulation(&self) -> &Triangulation {
+        &self.tri
+    }
     /// Key `i` (`codec().words()` words).
     pub fn key(&self, i: usize) -> &[u64] {
         &self.keys[i * self.stride..i * self.stride + self.codec.words()]
@@ -197,18 +218,73 @@ impl Sample {
     pub fn simplex(&self, i: usize) -> Simplex {
         self.codec.decode(self.key(i))
     }
-    /// Point `i` (d coordinates).
-    pub fn point(&self, i: usize) -> &[f64] {
+
+    fn point_work(&self) -> PointWork {
+        let k = self.codim();
+        PointWork {
+            decider: Decider::new(k),
+            values: vec![0.0; (k + 1) * k],
+            lambda: vec![0.0; k + 1],
+            vkey: vec![0; self.codec.words()],
+        }
+    }
+
+    /// Point `i` into `out` (d coordinates).
+    fn point_into(&self, i: usize, w: &mut PointWork, out: &mut [f64]) {
+        let k = self.codim();
+        let s = self.simplex(i);
+        let mut found = true;
+        s.for_each_vertex(|j, v| {
+            let at = match self.codec.encode_vertex(v, &mut w.vkey) {
+                Ok(()) => self.vertices.find(&w.vkey),
+                Err(_) => None,
+            };
+            match at {
+                Some(a) => {
+                    w.values[j * k..(j + 1) * k].copy_from_slice(&self.values[a * k..(a + 1) * k])
+                }
+                None => found = false,
+            }
+        });
+        if !found || !w.decider.decide(&w.values, &mut w.lambda).status.crossed() {
+            // Not reachable for a sample built by a trace or a scan.
+            out.fill(f64::NAN);
+            return;
+        }
+        self.tri
+            .barycentric_point(&w.lambda, |j, v| s.vertex_into(j, v), out);
+    }
+
+    /// Point `i` (d coordinates): where M-hat crosses simplex `i`.
+    pub fn point(&self, i: usize) -> Vec<f64> {
+        let mut out = vec![0.0; self.ambient_dim()];
+        self.point_into(i, &mut self.point_work(), &mut out);
+        out
+    }
+
+    /// All points, d per simplex, computed in parallel.
+    pub fn points(&self) -> Vec<f64> {
         let d = self.ambient_dim();
-        &self.points[i * d..(i + 1) * d]
+        let mut out = vec![0.0; self.len() * d];
+        out.par_chunks_mut(256 * d).enumerate().for_each_init(
+            || self.point_work(),
+            |w, (c, chunk)| {
+                for (j, p) in chunk.chunks_exact_mut(d).enumerate() {
+                    self.point_into(c * 256 + j, w, p);
+                }
+            },
+        );
+        out
     }
-    /// All points, d per simplex.
-    pub fn points(&self) -> &[f64] {
-        &self.points
-    }
+
     /// (simplex, point) pairs in order.
-    pub fn iter(&self) -> impl Iterator<Item = (Simplex, &[f64])> + '_ {
-        (0..self.len()).map(|i| (self.simplex(i), self.point(i)))
+    pub fn iter(&self) -> impl Iterator<Item = (Simplex, Vec<f64>)> + '_ {
+        let mut w = self.point_work();
+        (0..self.len()).map(move |i| {
+            let mut p = vec![0.0; self.ambient_dim()];
+            self.point_into(i, &mut w, &mut p);
+            (self.simplex(i), p)
+        })
     }
     /// Number of rim simplices: crossed k-simplices next to S whose points lie outside the
     /// domain (box, boundary inequalities). The cell complex clips its cells with them.
@@ -229,6 +305,12 @@ impl Sample {
         let mut v: Vec<&[u64]> = (0..self.len()).map(|i| self.key(i)).collect();
         v.sort_unstable();
         v
+    }
+    /// Bytes held: keys, vertex keys and values, rim.
+    pub fn memory_bytes(&self) -> usize {
+        (self.keys.capacity() + self.rim_keys.capacity()) * 8
+            + self.vertices.memory_bytes()
+            + (self.values.capacity() + self.rim_points.capacity()) * 8
     }
 }
 
@@ -305,12 +387,28 @@ fn context<'a>(
     })
 }
 
-fn sample_from<const W: usize>(codec: KeyCodec, engine: Engine<W>, stats: TraceStats) -> Sample {
+fn sample_from<const W: usize>(
+    codec: KeyCodec,
+    tri: &Triangulation,
+    engine: Engine<W>,
+    stats: TraceStats,
+) -> Sample {
+    let words = codec.words();
+    let verts = engine.verts.into_words();
+    let mut vertices = KeySet::new(words);
+    vertices.reserve(verts.len() / W);
+    for v in verts.chunks_exact(W) {
+        vertices.insert(&v[..words]);
+    }
+    let mut keys = engine.s.into_words();
+    keys.shrink_to_fit();
     Sample {
         codec,
         stride: W,
-        keys: engine.s.into_words(),
-        points: engine.points,
+        keys,
+        vertices,
+        values: engine.values,
+        tri: tri.clone(),
         rim_keys: engine.rim.into_words(),
         rim_points: engine.rim_points,
         stats,
@@ -379,7 +477,8 @@ fn trace_with<const W: usize>(
     let mut stats = engine.stats.clone();
     stats.memory_bytes = engine.bytes() as u64;
     stats.elapsed_s = start.elapsed().as_secs_f64();
-    Ok(sample_from(codec, engine, stats))
+    let tri = engine.ctx.tri;
+    Ok(sample_from(codec, tri, engine, stats))
 }
 
 /// Every crossed k-simplex of `tri` whose point lies in `opts.bbox` (required), with no seed.
@@ -404,18 +503,18 @@ fn exhaustive_with<const W: usize>(ctx: TraceContext) -> Result<Sample> {
     let start = Instant::now();
     let bbox = ctx.domain.bbox.expect("checked by exhaustive()");
     let codec = ctx.codec;
-    let (table, points, scan_stats) = exhaustive::scan::<W>(&ctx, bbox)?;
+    let (table, scan_stats) = exhaustive::scan::<W>(&ctx, bbox)?;
     let components = exhaustive::count_components(&codec, &table)?;
     let mut engine: Engine<W> = Engine::new(ctx);
     engine.s = table;
-    engine.points = points;
     engine.stats = scan_stats;
     engine.complete_rim()?;
     let mut stats = engine.stats.clone();
     stats.components = components;
     stats.memory_bytes = engine.bytes() as u64;
     stats.elapsed_s = start.elapsed().as_secs_f64();
-    Ok(sample_from(codec, engine, stats))
+    let tri = engine.ctx.tri;
+    Ok(sample_from(codec, tri, engine, stats))
 }
 
 #[cfg(test)]

@@ -70,13 +70,12 @@ impl<const W: usize> Engine<'_, W> {
             if !hits.is_empty() {
                 hits.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
                 let mut traced = 0;
-                for (_, key, p) in hits {
+                for (_, key, _) in hits {
                     if self.stats.stopped.is_some() {
                         break;
                     }
                     let (i, new) = self.s.insert(&key)?;
                     if new {
-                        self.points.extend_from_slice(p);
                         self.run(i as usize..i as usize + 1)?;
                         traced += 1;
                     }

@@ -211,7 +211,7 @@ impl BitReader<'_> {
 
 /// A set of fixed-width keys kept in insertion order in one flat arena, indexed by a hash
 /// table of u32 positions: about `8 * words + 5` bytes per key, no allocation per key.
-#[derive(Clone)]
+#[derive(Clone, Debug)]
 pub struct KeySet {
     words: usize,
     arena: Vec<u64>,
