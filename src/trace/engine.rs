@@ -89,7 +89,9 @@ impl<'a, const W: usize> Engine<'a, W> {
             back: Back::default(),
         };
         while !front.range.is_empty() {
-            let Some(found) = self.step(&front)? else {
+            // Points only serve to test the domain here (the sample computes its own).
+            let with_points = !self.ctx.domain.is_everywhere();
+            let Some(found) = self.step(&front, with_points)? else {
                 return Ok(());
             };
             front = self.accept(found)?;
@@ -115,7 +117,7 @@ impl<'a, const W: usize> Engine<'a, W> {
             range: all,
             back: Back::default(),
         };
-        if let Some(found) = self.step(&front)? {
+        if let Some(found) = self.step(&front, true)? {
             for (key, p) in found.keys.iter().zip(found.points.chunks_exact(self.ctx.d)) {
                 self.rim.insert(key)?;
                 self.rim_points.extend_from_slice(p);
@@ -268,20 +270,23 @@ impl<'a, const W: usize> Engine<'a, W> {
         let (d, n) = (self.ctx.d, self.ctx.k + 1);
         let start = self.s.len();
         let (mut rows, mut back) = (Vec::new(), Back::default());
-        for (i, ((key, p), row)) in found
+        for (i, (key, row)) in found
             .keys
             .iter()
-            .zip(found.points.chunks_exact(d))
             .zip(found.rows.chunks_exact(n))
             .enumerate()
         {
-            if self.ctx.domain.contains(p) {
-                self.s.insert(key)?;
-                rows.extend_from_slice(row);
-                back.push_from(&found.back, i);
-            } else {
-                self.rim.insert(key)?;
-                self.rim_points.extend_from_slice(p);
+            match found.points.get(i * d..(i + 1) * d) {
+                Some(p) if !self.ctx.domain.contains(p) => {
+                    self.rim.insert(key)?;
+                    self.rim_points.extend_from_slice(p);
+                }
+                // Inside, or no point computed: the domain is everything.
+                _ => {
+                    self.s.insert(key)?;
+                    rows.extend_from_slice(row);
+                    back.push_from(&found.back, i);
+                }
             }
         }
         Ok(Frontier {

@@ -89,7 +89,7 @@ impl<const W: usize> Decided<W> {
 }
 
 /// The crossed simplices a level found, sorted by key, with their vertex-cache rows,
-/// their points and their way back (see [`Frontier`]).
+/// their points (none when not asked for) and their way back (see [`Frontier`]).
 pub(crate) struct Found<const W: usize> {
     pub keys: Vec<Key<W>>,
     pub rows: Vec<u32>,
@@ -269,7 +269,12 @@ impl<const W: usize> Work<'_, '_, W> {
             Some(a) => a,
             None => {
                 tau.vertex_into(p, &mut self.v[..d]);
-                if self.skip.chunks_exact(d).any(|b| b == &self.v[..d]) {
+                let v = &self.v[..d];
+                if self
+                    .skip
+                    .chunks_exact(d)
+                    .any(|b| b.iter().zip(v).all(|(x, y)| x == y))
+                {
                     return Ok(());
                 }
                 e.ctx.codec.encode_vertex(&self.v[..d], &mut self.key)?;
@@ -321,9 +326,13 @@ impl<const W: usize> Engine<'_, W> {
     /// One level: the crossed k-facets of the frontier's cofacets that are neither in S nor
     /// in the rim, sorted by key, with their rows and points. `rows` holds the frontier's
     /// vertex-cache rows. `None` when the trace must stop.
-    pub(super) fn step(&mut self, frontier: &Frontier) -> Result<Option<Found<W>>> {
+    pub(super) fn step(
+        &mut self,
+        frontier: &Frontier,
+        with_points: bool,
+    ) -> Result<Option<Found<W>>> {
         if frontier.range.is_empty() {
-            return Ok(Some(self.found([])));
+            return Ok(Some(self.found([], with_points)));
         }
         let rows = &frontier.rows[..];
         let (d, n) = (self.ctx.d, self.ctx.k + 1);
@@ -405,15 +414,18 @@ impl<const W: usize> Engine<'_, W> {
             });
             err?;
         }
+        if second.is_empty() {
+            return Ok(Some(self.found([first], with_points)));
+        }
         sort(&mut second);
         let second = self.decide_unique(&second, rows)?;
-        Ok(Some(self.found([first, second])))
+        Ok(Some(self.found([first, second], with_points)))
     }
 
     /// Whether `key` is neither in S nor in the rim.
     #[inline]
     fn is_new(&self, key: &Key<W>) -> bool {
-        self.s.find(key).is_none() && self.rim.find(key).is_none()
+        self.s.find(key).is_none() && (self.rim.len() == 0 || self.rim.find(key).is_none())
     }
 
     /// Pushes onto `out` every facet of `tau` (cofacet `via` of frontier simplex `from`,
@@ -501,8 +513,8 @@ impl<const W: usize> Engine<'_, W> {
         })
     }
 
-    /// The crossed simplices of the rounds, sorted by key, with their points.
-    fn found<const R: usize>(&self, rounds: [Decided<W>; R]) -> Found<W> {
+    /// The crossed simplices of the rounds, sorted by key, with their points if asked for.
+    fn found<const R: usize>(&self, rounds: [Decided<W>; R], with_points: bool) -> Found<W> {
         let (d, n) = (self.ctx.d, self.ctx.k + 1);
         type Hit<'r, const W: usize> = (Key<W>, &'r [u32], &'r [f64], &'r [u32]);
         let mut hits: Vec<Hit<W>> = rounds
@@ -521,7 +533,8 @@ impl<const W: usize> Engine<'_, W> {
             })
             .collect();
         hits.sort_unstable_by_key(|h| h.0);
-        let parts = par_ranges(hits.len(), POINT_CHUNK, |r| {
+        let len = if with_points { hits.len() } else { 0 };
+        let parts = par_ranges(len, POINT_CHUNK, |r| {
             let mut out = vec![0.0; r.len() * d];
             for (o, h) in out.chunks_exact_mut(d).zip(&hits[r]) {
                 self.point(&h.0, h.2, o);

@@ -80,6 +80,11 @@ impl<'a> Domain<'a> {
         }
     }
 
+    /// Whether every point is inside (no box, no inequality).
+    pub fn is_everywhere(&self) -> bool {
+        self.constraints == 0
+    }
+
     /// The constraint values at `x` (box margins x_i - lo_i, hi_i - x_i, then the g_i):
     /// `x` is inside when all are >= 0.
     fn values(&self, x: &[f64], out: &mut Vec<f64>) {
