@@ -42,8 +42,8 @@ struct Candidate<const W: usize> {
 /// What naming the exits of some frontier simplices gives.
 struct Named<const W: usize> {
     cands: Vec<Candidate<W>>,
-    /// Cofacets whose new vertex is not cached yet: (from, via, vertex key).
-    deferred: Vec<(u32, u32, Key<W>)>,
+    /// Cofacets whose new vertex is not cached yet.
+    deferred: Vec<Deferred<W>>,
     /// Cofacets whose facets were all listed (the pivot could not run).
     fallbacks: u64,
     /// Cofacets with a non-finite value at their new vertex (no other crossed facet).
@@ -66,6 +66,17 @@ impl<const W: usize> Named<W> {
         self.fallbacks += other.fallbacks;
         self.non_finite += other.non_finite;
     }
+}
+
+/// A cofacet whose new vertex was not cached: cofacet `via` of frontier simplex `from`,
+/// made by the split `(part, subset)`, and its new vertex.
+#[derive(Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
+struct Deferred<const W: usize> {
+    from: u32,
+    via: u32,
+    part: u32,
+    subset: u64,
+    vertex: Key<W>,
 }
 
 /// The distinct keys of a sorted candidate list with their rows and verdicts.
@@ -166,6 +177,7 @@ pub(crate) fn sort<T: Ord + Send>(v: &mut [T]) {
 struct Namer<'e, 'a, const W: usize> {
     frontier: &'e Frontier,
     sigma: Simplex,
+    tau: Simplex,
     work: Work<'e, 'a, W>,
 }
 
@@ -186,6 +198,7 @@ impl<'e, 'a, const W: usize> Namer<'e, 'a, W> {
         Namer {
             frontier,
             sigma: blank.clone(),
+            tau: blank.clone(),
             work: Work {
                 engine,
                 pivot: Pivot::new(engine.ctx.k),
@@ -222,52 +235,48 @@ impl<'e, 'a, const W: usize> Namer<'e, 'a, W> {
         let ok = self.load(i);
         let mut via = 0u32;
         let mut err = Ok(());
-        self.sigma.for_each_cofacet_apex(|tau, p| {
+        self.sigma.for_each_cofacet_split(|tau, p, split| {
             if err.is_ok() {
-                err = self.work.cofacet(tau, p, i as u32, via, None, ok);
+                err = self.work.cofacet(tau, p, i as u32, via, Err(split), ok);
             }
             via += 1;
         });
         err
     }
 
-    /// Names the exits of the cofacets `vias` (sorted, with their new vertices' cache
-    /// indices) of frontier simplex `i`.
-    fn some_cofacets(&mut self, i: usize, vias: &[(u32, u32)]) -> Result<()> {
+    /// Names the exits of the deferred cofacets `some` (all of frontier simplex `i`), with
+    /// the cache indices of their new vertices.
+    fn some_cofacets(&mut self, i: usize, some: &[(Deferred<W>, u32)]) -> Result<()> {
         let ok = self.load(i);
-        let mut via = 0u32;
-        let mut next = vias.iter().peekable();
-        let mut err = Ok(());
-        self.sigma.for_each_cofacet_apex(|tau, p| {
-            if let Some(&&(v, apex)) = next.peek() {
-                if v == via && err.is_ok() {
-                    next.next();
-                    err = self.work.cofacet(tau, p, i as u32, via, Some(apex), ok);
-                }
-            }
-            via += 1;
-        });
-        err
+        for (t, apex) in some {
+            let p = self
+                .sigma
+                .cofacet_into(t.part as usize, t.subset, &mut self.tau);
+            self.work
+                .cofacet(&self.tau, p, i as u32, t.via, Ok(*apex), ok)?;
+        }
+        Ok(())
     }
 }
 
 impl<const W: usize> Work<'_, '_, W> {
-    /// Cofacet `tau` (new vertex at `p`, cache index `apex` if known) of frontier simplex
-    /// `from`, whose pivot is loaded (`ok`).
+    /// Cofacet `tau` (new vertex at `p`; its cache index, or the split that makes tau when
+    /// the index is not looked up yet) of frontier simplex `from`, whose pivot is loaded
+    /// (`ok`).
     fn cofacet(
         &mut self,
         tau: &Simplex,
         p: usize,
         from: u32,
         via: u32,
-        apex: Option<u32>,
+        apex: std::result::Result<u32, (usize, u64)>,
         ok: bool,
     ) -> Result<()> {
         let e = self.engine;
         let (d, k) = (e.ctx.d, e.ctx.k);
         let apex = match apex {
-            Some(a) => a,
-            None => {
+            Ok(a) => a,
+            Err((part, subset)) => {
                 tau.vertex_into(p, &mut self.v[..d]);
                 let v = &self.v[..d];
                 if self
@@ -281,7 +290,13 @@ impl<const W: usize> Work<'_, '_, W> {
                 match e.verts.find(&self.key) {
                     Some(a) => a,
                     None => {
-                        self.out.deferred.push((from, via, self.key));
+                        self.out.deferred.push(Deferred {
+                            from,
+                            via,
+                            part: part as u32,
+                            subset,
+                            vertex: self.key,
+                        });
                         return Ok(());
                     }
                 }
@@ -355,23 +370,21 @@ impl<const W: usize> Engine<'_, W> {
         if !named.deferred.is_empty() {
             // Cofacets whose new vertex was not cached: evaluate f there, then name them.
             let deferred = std::mem::take(&mut named.deferred);
-            let mut keys: Vec<Key<W>> = deferred.iter().map(|t| t.2).collect();
+            let mut keys: Vec<Key<W>> = deferred.iter().map(|t| t.vertex).collect();
             self.add_vertices(&mut keys)?;
-            let by_sigma: Vec<(u32, u32, u32)> = deferred
+            let with_apex: Vec<(Deferred<W>, u32)> = deferred
                 .iter()
-                .map(|&(from, via, key)| (from, via, self.verts.find(&key).expect("just added")))
+                .map(|t| (*t, self.verts.find(&t.vertex).expect("just added")))
                 .collect();
-            let starts: Vec<usize> = (0..by_sigma.len())
-                .filter(|&i| i == 0 || by_sigma[i - 1].0 != by_sigma[i].0)
+            let starts: Vec<usize> = (0..with_apex.len())
+                .filter(|&i| i == 0 || with_apex[i - 1].0.from != with_apex[i].0.from)
                 .collect();
             let parts = par_ranges(starts.len(), SIGMA_CHUNK, |r| -> Result<Named<W>> {
                 let mut namer = Namer::new(self, frontier);
-                let mut vias = Vec::new();
                 for s in r {
-                    let end = starts.get(s + 1).copied().unwrap_or(by_sigma.len());
-                    vias.clear();
-                    vias.extend(by_sigma[starts[s]..end].iter().map(|t| (t.1, t.2)));
-                    namer.some_cofacets(by_sigma[starts[s]].0 as usize, &vias)?;
+                    let end = starts.get(s + 1).copied().unwrap_or(with_apex.len());
+                    let group = &with_apex[starts[s]..end];
+                    namer.some_cofacets(group[0].0.from as usize, group)?;
                 }
                 Ok(namer.work.out)
             });

@@ -374,13 +374,17 @@ impl Simplex {
     /// Like [`Simplex::for_each_cofacet`], with the position `p` of the new vertex in the
     /// cofacet: its vertices are this simplex's in order with the new one inserted at `p`.
     pub fn for_each_cofacet_apex(&self, mut f: impl FnMut(&Simplex, usize)) {
+        self.for_each_cofacet_split(|c, p, _| f(c, p));
+    }
+
+    /// Like [`Simplex::for_each_cofacet_apex`], with the split `(i, s)` that makes each
+    /// cofacet (part i split into s and the rest), for [`Simplex::cofacet_into`].
+    pub(crate) fn for_each_cofacet_split(&self, mut f: impl FnMut(&Simplex, usize, (usize, u64))) {
         let d = self.d as usize;
         let n = self.n_parts as usize;
         if n == d + 1 {
             return;
         }
-        let top = 1u64 << d;
-        let full = full_mask(d);
         let mut out = Self::blank(d, n + 1);
         for i in 0..n {
             let m = self.parts[i];
@@ -389,24 +393,36 @@ impl Simplex {
             }
             let mut s = (m - 1) & m;
             while s != 0 {
-                let rest = m & !s;
-                out.v0[..d].copy_from_slice(&self.v0[..d]);
-                if i == n - 1 && s & top != 0 {
-                    // d+1 moved to the second-to-last part: rotate it to the end.
-                    shift_by_mask(&mut out.v0[..d], full ^ rest, d);
-                    out.parts[0] = rest;
-                    out.parts[1..n].copy_from_slice(&self.parts[..n - 1]);
-                    out.parts[n] = s;
-                    f(&out, 0);
-                } else {
-                    out.parts[..i].copy_from_slice(&self.parts[..i]);
-                    out.parts[i] = s;
-                    out.parts[i + 1] = rest;
-                    out.parts[i + 2..n + 1].copy_from_slice(&self.parts[i + 1..n]);
-                    f(&out, i + 1);
-                }
+                let p = self.cofacet_into(i, s, &mut out);
+                f(&out, p, (i, s));
                 s = (s - 1) & m;
             }
+        }
+    }
+
+    /// Writes into `out` the cofacet that splits part `i` into `s` (a non-empty proper
+    /// subset of it) followed by the rest; returns the position of its new vertex.
+    pub(crate) fn cofacet_into(&self, i: usize, s: u64, out: &mut Simplex) -> usize {
+        let d = self.d as usize;
+        let n = self.n_parts as usize;
+        let top = 1u64 << d;
+        let rest = self.parts[i] & !s;
+        out.d = self.d;
+        out.n_parts = (n + 1) as u8;
+        out.v0[..d].copy_from_slice(&self.v0[..d]);
+        if i == n - 1 && s & top != 0 {
+            // d+1 moved to the second-to-last part: rotate it to the end.
+            shift_by_mask(&mut out.v0[..d], full_mask(d) ^ rest, d);
+            out.parts[0] = rest;
+            out.parts[1..n].copy_from_slice(&self.parts[..n - 1]);
+            out.parts[n] = s;
+            0
+        } else {
+            out.parts[..i].copy_from_slice(&self.parts[..i]);
+            out.parts[i] = s;
+            out.parts[i + 1] = rest;
+            out.parts[i + 2..n + 1].copy_from_slice(&self.parts[i + 1..n]);
+            i + 1
         }
     }
 
