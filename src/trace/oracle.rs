@@ -9,8 +9,17 @@ use crate::error::Result;
 use crate::expr::ImplicitFunction;
 use crate::triangulation::Triangulation;
 
-/// Vertices per evaluation chunk, and simplices per decision chunk.
+/// Most vertices per evaluation chunk, and simplices per decision chunk.
 const CHUNK: usize = 2048;
+/// Fewest vertices or simplices per chunk.
+const MIN_CHUNK: usize = 64;
+
+/// Items per parallel chunk for `len` items: about four chunks per thread, within
+/// `MIN_CHUNK..=CHUNK`.
+fn chunk_for(len: usize) -> usize {
+    len.div_ceil(4 * rayon::current_num_threads())
+        .clamp(MIN_CHUNK, CHUNK)
+}
 
 /// A backend that evaluates f and decides k-simplices, one large batch per call.
 pub trait Oracle: Sync {
@@ -57,9 +66,10 @@ impl Oracle for CpuOracle<'_> {
         values: &mut [f64],
     ) -> Result<()> {
         let (d, k) = (tri.dim(), self.f.codim());
+        let chunk = chunk_for(lattice.len() / d);
         lattice
-            .par_chunks(CHUNK * d)
-            .zip(values.par_chunks_mut(CHUNK * k))
+            .par_chunks(chunk * d)
+            .zip(values.par_chunks_mut(chunk * k))
             .for_each_init(Vec::new, |x, (lat, out)| {
                 x.resize(lat.len(), 0.0);
                 for (v, p) in lat.chunks_exact(d).zip(x.chunks_exact_mut(d)) {
@@ -79,10 +89,11 @@ impl Oracle for CpuOracle<'_> {
     ) -> Result<u64> {
         let k = self.f.codim();
         let n = k + 1;
+        let chunk = chunk_for(status.len());
         let exact = simplices
-            .par_chunks(CHUNK * n)
-            .zip(status.par_chunks_mut(CHUNK))
-            .zip(lambda.par_chunks_mut(CHUNK * n))
+            .par_chunks(chunk * n)
+            .zip(status.par_chunks_mut(chunk))
+            .zip(lambda.par_chunks_mut(chunk * n))
             .map_init(
                 || (Decider::new(k), vec![0.0; n * k]),
                 |(decider, local), ((idx, st), lam)| {
