@@ -57,9 +57,19 @@ fn trace_writes_the_sample_and_the_report() {
         "elapsed_s",
         "simplices_per_s",
         "peak_memory_bytes",
+        "oracle_calls",
+        "pivot_fallbacks",
     ] {
         assert!(r.get(key).is_some(), "report lacks {key}: {r}");
     }
+    // Pivoting: about one oracle call per output simplex, no fallback on a plain circle.
+    let calls = r["oracle_calls"].as_u64().unwrap();
+    let count = r["simplex_count"].as_u64().unwrap();
+    assert!(
+        calls < 2 * count,
+        "{calls} oracle calls for {count} simplices"
+    );
+    assert_eq!(r["pivot_fallbacks"], 0);
     assert_eq!(r["ambient_dim"], 2);
     assert_eq!(r["codim"], 1);
     assert_eq!(r["triangulation"], "coxeter");

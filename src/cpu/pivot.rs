@@ -38,7 +38,7 @@ impl Pivot {
         }
     }
 
-    /// Inverts L for the simplex with vertex values F_j[c] = `val(j, c)`; false when L is
+    /// Inverts L for the simplex with vertex values `F_j[c] = val(j, c)`; false when L is
     /// numerically singular (no ratio test then).
     pub fn load(&mut self, val: impl Fn(usize, usize) -> f64) -> bool {
         let n = self.n;

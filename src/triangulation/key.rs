@@ -84,24 +84,9 @@ impl KeyCodec {
 
     /// Unpacks a key written by [`KeyCodec::encode`] (no heap allocation).
     pub fn decode(&self, key: &[u64]) -> Simplex {
-        let bias = 1i64 << (self.coord_bits - 1);
-        let mut r = BitReader { words: key, pos: 0 };
-        let mut v0 = [0i32; MAX_DIM];
-        for c in v0.iter_mut().take(self.d) {
-            *c = (r.get(self.coord_bits) as i64 - bias) as i32;
-        }
-        let mut parts = [0u64; MAX_DIM + 1];
-        parts[self.l] |= 1 << self.d;
-        for e in 0..self.d {
-            let p = if self.part_bits > 0 {
-                r.get(self.part_bits) as usize
-            } else {
-                0
-            };
-            parts[p] |= 1 << e;
-        }
-        Simplex::from_masks(&v0[..self.d], &parts[..=self.l])
-            .expect("key decodes to a valid simplex")
+        let mut s = Simplex::vertex(&[0; MAX_DIM][..self.d]).expect("the codec's d is valid");
+        self.decode_into(key, &mut s);
+        s
     }
 
     /// Unpacks a key into `out`, reusing its storage (no validation: keys come from
