@@ -288,6 +288,55 @@ fn cyclic_shift(v0: &[i32], parts: &[u64], k: usize) -> (Vec<i32>, Vec<u64>) {
 }
 
 #[test]
+fn keys_round_trip_at_every_width() {
+    // Widths that do not divide 64 put coordinates across word boundaries.
+    let mut rng = ChaCha8Rng::seed_from_u64(17);
+    for bits in 2..=32u32 {
+        for d in [1, 2, 3, 5, 8, 13, 30] {
+            let l = rng.random_range(0..=d);
+            let codec = KeyCodec::new(d, l, bits).unwrap();
+            let (lo, hi) = (-(1i64 << (bits - 1)), (1i64 << (bits - 1)) - 1);
+            let mut key = vec![0u64; codec.words()];
+            for _ in 0..20 {
+                // Extremes of the range as well as values inside it.
+                let v0: Vec<i32> = (0..d)
+                    .map(|_| match rng.random_range(0..4) {
+                        0 => lo as i32,
+                        1 => hi as i32,
+                        _ => rng.random_range(lo..=hi) as i32,
+                    })
+                    .collect();
+                let mut back = vec![0i32; d];
+                codec.encode_vertex(&v0, &mut key).unwrap();
+                codec.decode_vertex(&key, &mut back);
+                assert_eq!(back, v0, "bits {bits}, d {d}");
+            }
+            for _ in 0..20 {
+                // Canonical form may move the base by one step per coordinate.
+                let v0: Vec<i32> = (0..d)
+                    .map(|_| rng.random_range(lo + 1..hi) as i32)
+                    .collect();
+                let s = Simplex::from_masks(&v0, &random_masks(&mut rng, d, l)).unwrap();
+                codec.encode(&s, &mut key).unwrap();
+                assert_eq!(codec.decode(&key), s, "bits {bits}, d {d}");
+            }
+            // One coordinate just out of range, either side.
+            for bad in [lo - 1, hi + 1] {
+                if bad < i32::MIN as i64 || bad > i32::MAX as i64 {
+                    continue;
+                }
+                let mut v = vec![0i32; d];
+                v[d - 1] = bad as i32;
+                assert!(matches!(
+                    codec.encode_vertex(&v, &mut key),
+                    Err(Error::KeyOverflow { value, bits: b }) if value == bad && b == bits
+                ));
+            }
+        }
+    }
+}
+
+#[test]
 fn cyclic_shifts_share_one_canonical_key() {
     let mut rng = ChaCha8Rng::seed_from_u64(4);
     for d in dims_under_test() {

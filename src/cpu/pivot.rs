@@ -19,10 +19,8 @@ use super::decide::{invert, scaled_row_factors};
 #[derive(Clone, Debug)]
 pub struct Pivot {
     n: usize,
-    scale: Vec<f64>,
-    a: Vec<f64>,
-    inv: Vec<f64>,
-    w: Vec<f64>,
+    /// One allocation: the row scales (k), L (n x n), L^-1 (n x n) and L^-1 a (n).
+    buf: Vec<f64>,
 }
 
 impl Pivot {
@@ -31,11 +29,18 @@ impl Pivot {
         let n = k + 1;
         Pivot {
             n,
-            scale: vec![1.0; k],
-            a: vec![0.0; n * n],
-            inv: vec![0.0; n * n],
-            w: vec![0.0; n],
+            buf: vec![0.0; k + 2 * n * n + n],
         }
+    }
+
+    /// The parts of the work space: scales, L, L^-1, L^-1 a.
+    #[inline(always)]
+    fn parts(&mut self) -> (&mut [f64], &mut [f64], &mut [f64], &mut [f64]) {
+        let n = self.n;
+        let (scale, rest) = self.buf.split_at_mut(n - 1);
+        let (a, rest) = rest.split_at_mut(n * n);
+        let (inv, w) = rest.split_at_mut(n * n);
+        (scale, a, inv, w)
     }
 
     /// Inverts L for the simplex with vertex values `F_j[c] = val(j, c)`; false when L is
@@ -43,14 +48,15 @@ impl Pivot {
     pub fn load(&mut self, val: impl Fn(usize, usize) -> f64) -> bool {
         let n = self.n;
         let k = n - 1;
-        scaled_row_factors(k, &val, &mut self.scale);
-        self.a[..n].fill(1.0);
+        let (scale, a, inv, _) = self.parts();
+        scaled_row_factors(k, &val, scale);
+        a[..n].fill(1.0);
         for c in 0..k {
             for j in 0..n {
-                self.a[(c + 1) * n + j] = val(j, c) * self.scale[c];
+                a[(c + 1) * n + j] = val(j, c) * scale[c];
             }
         }
-        invert(n, &mut self.a, &mut self.inv)
+        invert(n, a, inv)
     }
 
     /// The vertex of the loaded simplex that leaves when a vertex with values `f` (k
@@ -70,8 +76,9 @@ impl Pivot {
 
     #[inline(always)]
     fn exit_steps(&mut self, n: usize, f: &[f64]) -> Option<usize> {
-        let (inv, w) = (&self.inv[..n * n], &mut self.w[..n]);
-        let (f, scale) = (&f[..n - 1], &self.scale[..n - 1]);
+        let (scale, _, inv, w) = self.parts();
+        let (inv, w, scale) = (&inv[..n * n], &mut w[..n], &scale[..n - 1]);
+        let f = &f[..n - 1];
         for i in 0..n {
             let row = &inv[i * n..(i + 1) * n];
             let mut s = row[0];

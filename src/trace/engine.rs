@@ -159,8 +159,9 @@ impl<'a, const W: usize> Engine<'a, W> {
         self.ctx
             .oracle
             .eval_vertices(self.ctx.tri, &lattice, &mut vals)?;
+        // Misses of the cache, deduplicated: all new.
         for key in keys.iter() {
-            self.verts.insert(key)?;
+            self.verts.insert_new(key)?;
         }
         self.values.extend_from_slice(&vals);
         self.stats.vertices += keys.len() as u64;
@@ -270,6 +271,7 @@ impl<'a, const W: usize> Engine<'a, W> {
         let (d, n) = (self.ctx.d, self.ctx.k + 1);
         let start = self.s.len();
         let (mut rows, mut back) = (Vec::new(), Back::default());
+        // A level's keys are distinct and in neither S nor the rim (see `step`).
         for (i, (key, row)) in found
             .keys
             .iter()
@@ -278,12 +280,12 @@ impl<'a, const W: usize> Engine<'a, W> {
         {
             match found.points.get(i * d..(i + 1) * d) {
                 Some(p) if !self.ctx.domain.contains(p) => {
-                    self.rim.insert(key)?;
+                    self.rim.insert_new(key)?;
                     self.rim_points.extend_from_slice(p);
                 }
                 // Inside, or no point computed: the domain is everything.
                 _ => {
-                    self.s.insert(key)?;
+                    self.s.insert_new(key)?;
                     rows.extend_from_slice(row);
                     back.push_from(&found.back, i);
                 }

@@ -51,20 +51,33 @@ struct Named<const W: usize> {
 }
 
 impl<const W: usize> Named<W> {
-    fn new() -> Self {
+    /// Room for `cands` candidates and `deferred` cofacets: sized up front, because
+    /// growing vectors on several threads at once contends for the allocator.
+    fn with_capacity(cands: usize, deferred: usize) -> Self {
         Named {
-            cands: Vec::new(),
-            deferred: Vec::new(),
+            cands: Vec::with_capacity(cands),
+            deferred: Vec::with_capacity(deferred),
             fallbacks: 0,
             non_finite: 0,
         }
     }
 
-    fn append(&mut self, mut other: Named<W>) {
-        self.cands.append(&mut other.cands);
-        self.deferred.append(&mut other.deferred);
-        self.fallbacks += other.fallbacks;
-        self.non_finite += other.non_finite;
+    /// The parts one after another, each vector allocated once.
+    fn concat(parts: Vec<Result<Named<W>>>) -> Result<Named<W>> {
+        let parts = parts.into_iter().collect::<Result<Vec<_>>>()?;
+        let mut all = Named {
+            cands: Vec::with_capacity(parts.iter().map(|p| p.cands.len()).sum()),
+            deferred: Vec::with_capacity(parts.iter().map(|p| p.deferred.len()).sum()),
+            fallbacks: 0,
+            non_finite: 0,
+        };
+        for p in parts {
+            all.cands.extend_from_slice(&p.cands);
+            all.deferred.extend_from_slice(&p.deferred);
+            all.fallbacks += p.fallbacks;
+            all.non_finite += p.non_finite;
+        }
+        Ok(all)
     }
 }
 
@@ -193,7 +206,13 @@ struct Work<'e, 'a, const W: usize> {
 }
 
 impl<'e, 'a, const W: usize> Namer<'e, 'a, W> {
-    fn new(engine: &'e Engine<'a, W>, frontier: &'e Frontier) -> Self {
+    /// A namer for about `cands` candidates and `deferred` deferred cofacets.
+    fn new(
+        engine: &'e Engine<'a, W>,
+        frontier: &'e Frontier,
+        cands: usize,
+        deferred: usize,
+    ) -> Self {
         let blank = Simplex::vertex(&[0; MAX_DIM][..engine.ctx.d]).expect("d was checked");
         Namer {
             frontier,
@@ -205,8 +224,8 @@ impl<'e, 'a, const W: usize> Namer<'e, 'a, W> {
                 facet: blank,
                 key: [0; W],
                 v: [0; MAX_DIM],
-                skip: Vec::new(),
-                out: Named::new(),
+                skip: Vec::with_capacity(4 * engine.ctx.d),
+                out: Named::with_capacity(cands, deferred),
             },
         }
     }
@@ -353,16 +372,14 @@ impl<const W: usize> Engine<'_, W> {
         let (d, n) = (self.ctx.d, self.ctx.k + 1);
         // Round 1: the pivot names one facet per cofacet.
         let parts = par_ranges(frontier.range.len(), SIGMA_CHUNK, |r| -> Result<Named<W>> {
-            let mut namer = Namer::new(self, frontier);
+            // Commonly under two new candidates and one deferred cofacet per simplex.
+            let mut namer = Namer::new(self, frontier, 2 * r.len(), r.len());
             for i in r {
                 namer.all_cofacets(i)?;
             }
             Ok(namer.work.out)
         });
-        let mut named = Named::new();
-        for part in parts {
-            named.append(part?);
-        }
+        let mut named = Named::concat(parts)?;
         let per_cand = size_of::<Candidate<W>>() + n * 12 + d * 8 + 16;
         if self.must_stop((named.cands.len() + 2 * named.deferred.len()) * per_cand) {
             return Ok(None);
@@ -380,7 +397,8 @@ impl<const W: usize> Engine<'_, W> {
                 .filter(|&i| i == 0 || with_apex[i - 1].0.from != with_apex[i].0.from)
                 .collect();
             let parts = par_ranges(starts.len(), SIGMA_CHUNK, |r| -> Result<Named<W>> {
-                let mut namer = Namer::new(self, frontier);
+                let end = starts.get(r.end).copied().unwrap_or(with_apex.len());
+                let mut namer = Namer::new(self, frontier, end - starts[r.start], 0);
                 for s in r {
                     let end = starts.get(s + 1).copied().unwrap_or(with_apex.len());
                     let group = &with_apex[starts[s]..end];
@@ -388,9 +406,10 @@ impl<const W: usize> Engine<'_, W> {
                 }
                 Ok(namer.work.out)
             });
-            for part in parts {
-                named.append(part?);
-            }
+            let more = Named::concat(parts)?;
+            named.cands.extend_from_slice(&more.cands);
+            named.fallbacks += more.fallbacks;
+            named.non_finite += more.non_finite;
         }
         self.stats.pivot_fallbacks += named.fallbacks;
         self.stats.non_finite += named.non_finite;

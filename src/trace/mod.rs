@@ -24,6 +24,7 @@ mod oracle;
 mod region;
 mod seeds;
 mod table;
+mod warm;
 
 use std::sync::atomic::AtomicBool;
 use std::sync::Arc;
@@ -449,8 +450,8 @@ pub fn trace(
     }
     let words = ctx.codec.words();
     // On a worker of the pool, levels too small to split run on this thread with no
-    // hand-over to another.
-    rayon::scope(|_| with_width!(words, trace_with(f, ctx, &seeds, search, opts.search_seed)))
+    // hand-over to another, and the other threads stay awake for the larger ones.
+    warm::warm(|| with_width!(words, trace_with(f, ctx, &seeds, search, opts.search_seed)))
 }
 
 fn trace_with<const W: usize>(
@@ -496,7 +497,7 @@ pub fn exhaustive(
         ));
     }
     let words = ctx.codec.words();
-    rayon::scope(|_| with_width!(words, exhaustive_with(ctx)))
+    warm::warm(|| with_width!(words, exhaustive_with(ctx)))
 }
 
 fn exhaustive_with<const W: usize>(ctx: TraceContext) -> Result<Sample> {

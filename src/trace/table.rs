@@ -45,25 +45,31 @@ impl<const W: usize> Table<W> {
 
     /// Inserts `key`; its position and whether it is new.
     pub fn insert(&mut self, key: &Key<W>) -> Result<(u32, bool)> {
+        match self.find(key) {
+            Some(i) => Ok((i, false)),
+            None => Ok((self.insert_new(key)?, true)),
+        }
+    }
+
+    /// Inserts `key`, known not to be in the table (one probe less than [`Table::insert`]);
+    /// returns its position.
+    pub fn insert_new(&mut self, key: &Key<W>) -> Result<u32> {
+        debug_assert!(self.find(key).is_none());
         let h = self.hasher.hash_one(key);
         let Table {
             words,
             index,
             hasher,
         } = self;
-        let at = |i: u32| -> &[u64] { &words[i as usize * W..(i as usize + 1) * W] };
-        if let Some(&i) = index.find(h, |&i| at(i) == key) {
-            return Ok((i, false));
-        }
-        let n = words.len() / W;
-        let i = u32::try_from(n).map_err(|_| Error::Io("more than 2^32 keys".into()))?;
+        let i =
+            u32::try_from(words.len() / W).map_err(|_| Error::Io("more than 2^32 keys".into()))?;
         index.insert_unique(h, i, |&j| {
             hasher.hash_one(
                 <&Key<W>>::try_from(&words[j as usize * W..(j as usize + 1) * W]).unwrap(),
             )
         });
         words.extend_from_slice(key);
-        Ok((i, true))
+        Ok(i)
     }
 
     /// Bytes held (arena and table).

@@ -130,17 +130,39 @@ impl KeyCodec {
     pub fn encode_vertex(&self, v: &[i32], out: &mut [u64]) -> Result<()> {
         let out = &mut out[..self.words];
         out.fill(0);
-        let bias = 1i64 << (self.coord_bits - 1);
-        let mut w = BitWriter { out, pos: 0 };
+        let bits = self.coord_bits;
+        let bias = 1i64 << (bits - 1);
+        // One test for all coordinates: a biased value out of range has a bit at or above
+        // `bits` (a negative one has them all).
+        let mut spill = 0u64;
+        // The word being filled, its index, and the bits used in it.
+        let (mut acc, mut w, mut pos) = (0u64, 0usize, 0u32);
         for &c in &v[..self.d] {
-            let x = c as i64 + bias;
-            if x < 0 || x >= 2 * bias {
-                return Err(Error::KeyOverflow {
-                    value: c as i64,
-                    bits: self.coord_bits,
-                });
+            let x = (c as i64 + bias) as u64;
+            spill |= x >> bits;
+            let x = x & ((1u64 << bits) - 1);
+            acc |= x << pos;
+            pos += bits;
+            if pos >= 64 {
+                out[w] = acc;
+                w += 1;
+                pos -= 64;
+                // The bits of x that did not fit (none when it ended the word exactly).
+                acc = if pos == 0 { 0 } else { x >> (bits - pos) };
             }
-            w.put(x as u64, self.coord_bits);
+        }
+        if pos > 0 {
+            out[w] = acc;
+        }
+        if spill != 0 {
+            let c = v[..self.d]
+                .iter()
+                .find(|&&c| (c as i64 + bias) as u64 >> bits != 0)
+                .expect("a coordinate spilled");
+            return Err(Error::KeyOverflow {
+                value: *c as i64,
+                bits,
+            });
         }
         Ok(())
     }

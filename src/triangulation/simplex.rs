@@ -58,6 +58,20 @@ pub(crate) fn shift_by_mask(v: &mut [i32], mask: u64, d: usize) {
     }
 }
 
+/// `dst[at..at + len] = src[from..from + len]`, for the short runs of a simplex's arrays:
+/// a fixed block of 8 when it fits both (entries past a simplex's length are not part of
+/// it, so overwriting them is harmless when runs are written in ascending order), which
+/// compiles to a few moves instead of a call to memmove.
+#[inline(always)]
+fn copy_run<T: Copy>(dst: &mut [T], at: usize, src: &[T], from: usize, len: usize) {
+    const BLOCK: usize = 8;
+    if len <= BLOCK && at + BLOCK <= dst.len() && from + BLOCK <= src.len() {
+        dst[at..at + BLOCK].copy_from_slice(&src[from..from + BLOCK]);
+    } else {
+        dst[at..at + len].copy_from_slice(&src[from..from + len]);
+    }
+}
+
 /// Checks 1 <= d <= MAX_DIM.
 pub(crate) fn check_dim(d: usize) -> Result<()> {
     if d == 0 || d > MAX_DIM {
@@ -338,15 +352,15 @@ impl Simplex {
         let d = self.d as usize;
         out.d = self.d;
         out.n_parts = l as u8;
-        out.v0[..d].copy_from_slice(&self.v0[..d]);
+        copy_run(&mut out.v0, 0, &self.v0, 0, d);
         if q == 0 {
             shift_by_mask(&mut out.v0[..d], self.parts[0], d);
-            out.parts[..l - 1].copy_from_slice(&self.parts[1..l]);
+            copy_run(&mut out.parts, 0, &self.parts, 1, l - 1);
             out.parts[l - 1] = self.parts[l] | self.parts[0];
         } else {
-            out.parts[..q - 1].copy_from_slice(&self.parts[..q - 1]);
+            copy_run(&mut out.parts, 0, &self.parts, 0, q - 1);
             out.parts[q - 1] = self.parts[q - 1] | self.parts[q];
-            out.parts[q..l].copy_from_slice(&self.parts[q + 1..=l]);
+            copy_run(&mut out.parts, q, &self.parts, q + 1, l - q);
         }
     }
 
@@ -409,19 +423,19 @@ impl Simplex {
         let rest = self.parts[i] & !s;
         out.d = self.d;
         out.n_parts = (n + 1) as u8;
-        out.v0[..d].copy_from_slice(&self.v0[..d]);
+        copy_run(&mut out.v0, 0, &self.v0, 0, d);
         if i == n - 1 && s & top != 0 {
             // d+1 moved to the second-to-last part: rotate it to the end.
             shift_by_mask(&mut out.v0[..d], full_mask(d) ^ rest, d);
             out.parts[0] = rest;
-            out.parts[1..n].copy_from_slice(&self.parts[..n - 1]);
+            copy_run(&mut out.parts, 1, &self.parts, 0, n - 1);
             out.parts[n] = s;
             0
         } else {
-            out.parts[..i].copy_from_slice(&self.parts[..i]);
+            copy_run(&mut out.parts, 0, &self.parts, 0, i);
             out.parts[i] = s;
             out.parts[i + 1] = rest;
-            out.parts[i + 2..n + 1].copy_from_slice(&self.parts[i + 1..n]);
+            copy_run(&mut out.parts, i + 2, &self.parts, i + 1, n - 1 - i);
             i + 1
         }
     }
