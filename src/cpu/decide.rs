@@ -104,16 +104,7 @@ impl Decider {
     /// bound, writing lambda; `None` when a needed sign is not certain. The GPU's solve
     /// shader is its twin.
     pub fn fast_path(&mut self, values: &[f64], lambda: &mut [f64]) -> Option<Status> {
-        // n known at compile time for the common sizes: the same steps, unrolled.
-        macro_rules! fixed {
-            ($($n:literal)*) => {
-                match self.n {
-                    $($n => self.fast_path_steps($n, values, lambda),)*
-                    n => self.fast_path_steps(n, values, lambda),
-                }
-            };
-        }
-        fixed!(2 3 4 5 6 7 8 9)
+        super::unrolled!(self.n, |n| self.fast_path_steps(n, values, lambda))
     }
 
     #[inline(always)]
@@ -173,17 +164,7 @@ impl Decider {
 /// (destroyed) into `inv`; false when a pivot is below n ulps of the largest entry. The
 /// GPU's solve shader runs the same steps.
 pub(crate) fn invert(n: usize, a: &mut [f64], inv: &mut [f64]) -> bool {
-    // The same steps with n known at compile time for the common sizes (unrolled, no
-    // bounds checks): the same operations in the same order, so the same bits.
-    macro_rules! fixed {
-        ($($n:literal)*) => {
-            match n {
-                $($n => invert_steps($n, &mut a[..$n * $n], &mut inv[..$n * $n]),)*
-                _ => invert_steps(n, a, inv),
-            }
-        };
-    }
-    fixed!(2 3 4 5 6 7 8 9)
+    super::unrolled!(n, |m| invert_steps(m, &mut a[..m * m], &mut inv[..m * m]))
 }
 
 #[inline(always)]

@@ -1,6 +1,22 @@
 //! The CPU side: batch evaluation of compiled expressions, the intersection test, the
 //! door-in/door-out pivot of tracing, and the twin of the GPU's vertex shader.
 
+/// Evaluates `$body` with `$m` bound to `$n`, in one arm per n = 2..=9 and a general arm
+/// for the rest: code inlined into an arm sees n as a constant, so its loops unroll and its
+/// bounds checks go, with the same operations in the same order (the same bits).
+macro_rules! unrolled {
+    ($n:expr, |$m:ident| $body:expr) => {
+        unrolled!(@arms $n, $m, $body, 2 3 4 5 6 7 8 9)
+    };
+    (@arms $n:expr, $m:ident, $body:expr, $($k:literal)*) => {
+        match $n {
+            $($k => { let $m = $k; $body })*
+            $m => $body,
+        }
+    };
+}
+pub(crate) use unrolled;
+
 pub mod decide;
 pub mod pivot;
 pub mod program;

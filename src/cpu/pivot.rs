@@ -62,16 +62,7 @@ impl Pivot {
     /// The vertex of the loaded simplex that leaves when a vertex with values `f` (k
     /// entries) enters, or `None` when no entry of L^-1 a is positive (rounding trouble).
     pub fn exit(&mut self, f: &[f64]) -> Option<usize> {
-        // n known at compile time for the common sizes.
-        macro_rules! fixed {
-            ($($n:literal)*) => {
-                match self.n {
-                    $($n => self.exit_steps($n, f),)*
-                    n => self.exit_steps(n, f),
-                }
-            };
-        }
-        fixed!(2 3 4 5 6 7 8 9)
+        super::unrolled!(self.n, |n| self.exit_steps(n, f))
     }
 
     #[inline(always)]

@@ -62,22 +62,20 @@ impl<const W: usize> Named<W> {
         }
     }
 
-    /// The parts one after another, each vector allocated once.
-    fn concat(parts: Vec<Result<Named<W>>>) -> Result<Named<W>> {
+    /// Appends the parts in order, growing each vector once.
+    fn extend(&mut self, parts: Vec<Result<Named<W>>>) -> Result<()> {
         let parts = parts.into_iter().collect::<Result<Vec<_>>>()?;
-        let mut all = Named {
-            cands: Vec::with_capacity(parts.iter().map(|p| p.cands.len()).sum()),
-            deferred: Vec::with_capacity(parts.iter().map(|p| p.deferred.len()).sum()),
-            fallbacks: 0,
-            non_finite: 0,
-        };
+        self.cands
+            .reserve(parts.iter().map(|p| p.cands.len()).sum());
+        self.deferred
+            .reserve(parts.iter().map(|p| p.deferred.len()).sum());
         for p in parts {
-            all.cands.extend_from_slice(&p.cands);
-            all.deferred.extend_from_slice(&p.deferred);
-            all.fallbacks += p.fallbacks;
-            all.non_finite += p.non_finite;
+            self.cands.extend_from_slice(&p.cands);
+            self.deferred.extend_from_slice(&p.deferred);
+            self.fallbacks += p.fallbacks;
+            self.non_finite += p.non_finite;
         }
-        Ok(all)
+        Ok(())
     }
 }
 
@@ -379,7 +377,8 @@ impl<const W: usize> Engine<'_, W> {
             }
             Ok(namer.work.out)
         });
-        let mut named = Named::concat(parts)?;
+        let mut named = Named::with_capacity(0, 0);
+        named.extend(parts)?;
         let per_cand = size_of::<Candidate<W>>() + n * 12 + d * 8 + 16;
         if self.must_stop((named.cands.len() + 2 * named.deferred.len()) * per_cand) {
             return Ok(None);
@@ -406,10 +405,7 @@ impl<const W: usize> Engine<'_, W> {
                 }
                 Ok(namer.work.out)
             });
-            let more = Named::concat(parts)?;
-            named.cands.extend_from_slice(&more.cands);
-            named.fallbacks += more.fallbacks;
-            named.non_finite += more.non_finite;
+            named.extend(parts)?;
         }
         self.stats.pivot_fallbacks += named.fallbacks;
         self.stats.non_finite += named.non_finite;

@@ -45,9 +45,10 @@ impl<const W: usize> Table<W> {
 
     /// Inserts `key`; its position and whether it is new.
     pub fn insert(&mut self, key: &Key<W>) -> Result<(u32, bool)> {
-        match self.find(key) {
-            Some(i) => Ok((i, false)),
-            None => Ok((self.insert_new(key)?, true)),
+        let h = self.hasher.hash_one(key);
+        match self.index.find(h, |&i| self.key(i as usize) == key) {
+            Some(&i) => Ok((i, false)),
+            None => Ok((self.insert_hashed(h, key)?, true)),
         }
     }
 
@@ -55,7 +56,11 @@ impl<const W: usize> Table<W> {
     /// returns its position.
     pub fn insert_new(&mut self, key: &Key<W>) -> Result<u32> {
         debug_assert!(self.find(key).is_none());
-        let h = self.hasher.hash_one(key);
+        self.insert_hashed(self.hasher.hash_one(key), key)
+    }
+
+    /// Appends `key`, absent, whose hash is `h`.
+    fn insert_hashed(&mut self, h: u64, key: &Key<W>) -> Result<u32> {
         let Table {
             words,
             index,
