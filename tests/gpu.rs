@@ -1,13 +1,15 @@
-//! The GPU oracle against the CPU: the solve and vertex shaders against their CPU twins, a
-//! stress test of badly conditioned simplices, and whole traces giving the same S and the
-//! same topology.
+//! The GPU oracle against the CPU: the solve, vertex and scan shaders against their CPU twins,
+//! a stress test of badly conditioned simplices, and whole traces and exhaustive scans giving
+//! the same S and the same topology.
 //! Runs on any adapter wgpu finds (lavapipe in CI); skipped, saying why, when there is none.
 
 use isomesh::complex::Complex;
 use isomesh::cpu::decide::Status;
+use isomesh::cpu::scan::candidates;
 use isomesh::expr::{preset, Problem};
 use isomesh::gpu::{Gpu, GpuOracle, Precision};
-use isomesh::trace::{trace, CpuOracle, Oracle, Sample, TraceOptions};
+use isomesh::trace::{exhaustive, scan_grid, trace, CpuOracle, Oracle, Sample, TraceOptions};
+use isomesh::triangulation::Triangulation;
 use rand::{Rng, SeedableRng};
 
 /// An adapter, or None (the test is skipped, saying why) when there is none, unless
@@ -32,6 +34,9 @@ fn precisions(g: &Gpu) -> Vec<Option<Precision>> {
         vec![Some(Precision::F32)]
     }
 }
+
+/// A preset's name, parameters and box half-width.
+type Scaled = (&'static str, Vec<(&'static str, f64)>, f64);
 
 fn problem(name: &str, params: &[(&str, f64)]) -> Problem {
     let params: Vec<(String, f64)> = params.iter().map(|(n, v)| (n.to_string(), *v)).collect();
@@ -279,6 +284,167 @@ fn the_vertex_shader_matches_its_cpu_twin() {
                 info.name,
                 o.precision()
             );
+        }
+    }
+}
+
+fn cube(d: usize, half: f64) -> Vec<[f64; 2]> {
+    vec![[-half, half]; d]
+}
+
+#[test]
+fn the_scan_shader_matches_its_cpu_twin() {
+    use isomesh::expr::{ClosureFunction, ImplicitFunction};
+    let Some(g) = gpu() else { return };
+    let grid_of = |f: &dyn ImplicitFunction, tri: &Triangulation, half: f64| {
+        let opts = TraceOptions {
+            bbox: Some(cube(tri.dim(), half)),
+            ..TraceOptions::default()
+        };
+        scan_grid(f, tri, &CpuOracle::new(f), &opts).unwrap()
+    };
+    // (what, f, triangulation, box half-width, the cubes to scan: None for all).
+    type Case = (String, Box<dyn ImplicitFunction>, Triangulation, f64);
+    let mut cases: Vec<(Case, Option<usize>)> = Vec::new();
+    for (name, params, half) in [
+        ("sphere", vec![("edge", 0.2)], 1.3),
+        ("flat-torus", vec![("edge", 0.3)], 1.2),
+        ("sphere", vec![("d", 5.0), ("edge", 0.6)], 1.2),
+        (
+            "3-torus",
+            vec![("a", 0.5), ("b", 0.5), ("c", 0.5), ("edge", 0.9)],
+            1.1,
+        ),
+    ] {
+        let p = problem(name, &params);
+        let tri = p.triangulation.build(p.dim()).unwrap();
+        let case = (
+            format!("{name} {params:?}"),
+            Box::new(p.system) as _,
+            tri,
+            half,
+        );
+        cases.push((case, None));
+    }
+    // d = 8, the largest the shader takes: a tilted hyperplane through the lattice vertex
+    // nearest the box's centre (an exact zero there), NaN on one side of another hyperplane.
+    // The d = 8 grid holds millions of vertices, so the scan covers 40,000 cubes around that
+    // vertex.
+    let tri = problem("sphere", &[("m", 7.0), ("d", 8.0), ("edge", 1.0)])
+        .triangulation
+        .build(8)
+        .unwrap();
+    let probe = ClosureFunction::new(8, 1, |x, o| o[0] = x[0]).unwrap();
+    let grid = grid_of(&probe, &tri, 0.05);
+    let (mut v, mut x) = (vec![0; 8], vec![0.0; 8]);
+    let norm = |i: usize, v: &mut Vec<i32>, x: &mut Vec<f64>| {
+        grid.coords(i, v);
+        tri.vertex_coords(v, x);
+        x.iter().map(|t| t * t).sum::<f64>()
+    };
+    let mid = (0..grid.len())
+        .min_by(|&a, &b| norm(a, &mut v, &mut x).total_cmp(&norm(b, &mut v, &mut x)))
+        .unwrap();
+    let mut c = vec![0.0; 8];
+    grid.coords(mid, &mut v);
+    tri.vertex_coords(&v, &mut c);
+    let plane = ClosureFunction::new(8, 1, move |x, o| {
+        o[0] = if x[1] > c[1] + 0.4 {
+            f64::NAN
+        } else {
+            (x[0] - c[0]) + 0.5 * (x[2] - c[2])
+        };
+    })
+    .unwrap();
+    cases.push((
+        ("hyperplane in R^8".into(), Box::new(plane), tri, 0.05),
+        Some(mid),
+    ));
+    for ((what, f, tri, half), middle) in &cases {
+        let grid = grid_of(f.as_ref(), tri, *half);
+        let cubes = match middle {
+            Some(m) => m - 20_000..m + 20_000,
+            None => 0..grid.len(),
+        };
+        let want = candidates(&grid, cubes.clone());
+        assert!(want.count(grid.codim()) > 100, "{what}: too few candidates");
+        if middle.is_some() {
+            assert!(grid.values().contains(&0.0), "{what}: no exact zero");
+            assert!(grid.values().iter().any(|v| v.is_nan()), "{what}: no NaN");
+        }
+        let oracle = GpuOracle::new(g.clone(), f.as_ref(), Some(Precision::F32)).unwrap();
+        let got = oracle.scan_stage(&grid, cubes.clone()).unwrap();
+        assert!(
+            got == want,
+            "{what}: {} vs {} words",
+            got.rows.len(),
+            want.rows.len()
+        );
+        // Bindings of 4 KiB: windows split down to single cubes, outputs overflow and run
+        // again, and cubes whose window alone is too large (all of them at d = 8) go to the
+        // CPU (on the first 3,000 cubes: each split is a dispatch).
+        let cubes = cubes.start..cubes.end.min(cubes.start + 3000);
+        let want = candidates(&grid, cubes.clone());
+        oracle.limit_binding(4096);
+        let got = oracle.scan_stage(&grid, cubes).unwrap();
+        assert!(got == want, "{what}, small bindings");
+    }
+}
+
+#[test]
+fn gpu_exhaustive_scans_give_the_cpu_sample_and_topology() {
+    let Some(g) = gpu() else { return };
+    let modes = precisions(&g);
+    drop(g);
+    let cases: Vec<Scaled> = vec![
+        ("circle", vec![("edge", 0.1)], 1.2),
+        ("circle", vec![("edge", 0.03)], 1.2),
+        ("sphere", vec![("edge", 0.2)], 1.2),
+        ("sphere", vec![("edge", 0.1)], 1.2),
+        ("torus", vec![("edge", 0.1)], 1.5),
+        ("torus", vec![("edge", 0.07)], 1.5),
+        ("chair", vec![("edge", 0.15)], 1.6),
+        ("chair", vec![("edge", 0.1)], 1.6),
+        ("flat-torus", vec![("edge", 0.3)], 1.1),
+        ("flat-torus", vec![("edge", 0.2)], 1.1),
+        (
+            "3-torus",
+            vec![("a", 0.5), ("b", 0.5), ("c", 0.5), ("edge", 0.9)],
+            1.1,
+        ),
+        ("complex-cosine", vec![("edge", 0.3)], 0.0),
+        ("complex-cosine", vec![("edge", 0.25)], 0.0),
+        ("bagel-klein", vec![("edge", 0.5)], 0.0),
+        ("cut-flat-torus", vec![("edge", 0.3)], 1.1),
+    ];
+    for precision in modes {
+        for (name, params, half) in &cases {
+            let p = problem(name, params);
+            let tri = p.triangulation.build(p.dim()).unwrap();
+            // The preset's own box where it has one.
+            let bbox = p.bbox.clone().unwrap_or_else(|| cube(p.dim(), *half));
+            let opts = TraceOptions {
+                bbox: Some(bbox.clone()),
+                ..TraceOptions::default()
+            };
+            let cpu = exhaustive(&p.system, &tri, &CpuOracle::new(&p.system), &opts).unwrap();
+            let oracle = GpuOracle::new(gpu().unwrap(), &p.system, precision).unwrap();
+            let gpu = exhaustive(&p.system, &tri, &oracle, &opts).unwrap();
+            let what = format!("{name} {params:?} {precision:?}");
+            assert!(cpu.len() > 10, "{what}: only {} simplices", cpu.len());
+            assert_eq!(cpu.sorted_keys(), gpu.sorted_keys(), "{what}: S differs");
+            assert_eq!(cpu.stats.oracle_calls, gpu.stats.oracle_calls, "{what}");
+            assert_eq!(cpu.stats.components, gpu.stats.components, "{what}");
+            assert!(cpu.points() == gpu.points(), "{what}: points differ");
+            let tc = Complex::build(&cpu, &p.system, Some(&bbox))
+                .unwrap()
+                .topology();
+            let tg = Complex::build(&gpu, &p.system, Some(&bbox))
+                .unwrap()
+                .topology();
+            assert_eq!(tc.cells, tg.cells, "{what}");
+            assert_eq!(tc.betti_mod2, tg.betti_mod2, "{what}");
+            assert!(oracle.stats().solved > 0, "{what}: the GPU did nothing");
         }
     }
 }

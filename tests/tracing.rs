@@ -1,10 +1,13 @@
 //! Manifold tracing: agreement with the exhaustive scan, door in / door out, accuracy of the
 //! points, exact ties, determinism, and clean failures.
 
-use std::collections::HashSet;
+use std::collections::{HashMap, HashSet};
 
+use isomesh::cpu::scan::{Candidates, BASE};
 use isomesh::expr::{preset, EquationSystem, ImplicitFunction, Problem};
-use isomesh::trace::{exhaustive, trace, CpuOracle, Sample, StopReason, TraceOptions};
+use isomesh::trace::{
+    exhaustive, scan_grid, trace, CpuOracle, Sample, ScanGrid, StopReason, TraceOptions,
+};
 use isomesh::triangulation::{Simplex, Triangulation};
 use isomesh::Error;
 
@@ -423,4 +426,247 @@ fn closures_trace_like_equations() {
     let common = b.sorted_keys().iter().filter(|k| ka.contains(*k)).count();
     assert!(common as f64 >= 0.999 * a.len().max(b.len()) as f64);
     assert_door_in_door_out(&a, "closure torus");
+}
+
+/// The scan's candidates, by brute force from the definition: every chain of corners of
+/// every scanned cube where each component of f has a value <= 0 and one >= 0 (NaN values
+/// count as neither), in order of base vertex, then chain.
+fn brute_candidates(grid: &ScanGrid) -> Candidates {
+    let (d, k) = (grid.dim(), grid.codim());
+    let mut index = HashMap::new();
+    let mut v = vec![0i32; d];
+    for i in 0..grid.len() {
+        grid.coords(i, &mut v);
+        index.insert(v.clone(), i as u32);
+    }
+    let mut out = Candidates::default();
+    for cube in (0..grid.len()).filter(|&i| grid.codes()[i] & BASE != 0) {
+        let mut base = vec![0i32; d];
+        grid.coords(cube, &mut base);
+        let corner: Option<Vec<u32>> = (0..1usize << d)
+            .map(|s| {
+                let c: Vec<i32> = (0..d).map(|j| base[j] + (s >> j & 1) as i32).collect();
+                index.get(&c).copied()
+            })
+            .collect();
+        let Some(corner) = corner else { continue };
+        let mut chains = vec![vec![0usize]];
+        for _ in 0..k {
+            chains = chains
+                .into_iter()
+                .flat_map(|c| {
+                    let last = *c.last().unwrap();
+                    (last + 1..1 << d)
+                        .filter(move |&t| t & last == last)
+                        .map(move |t| [c.clone(), vec![t]].concat())
+                })
+                .collect();
+        }
+        chains.sort();
+        for chain in chains {
+            let admits = (0..k).all(|c| {
+                let vals = || {
+                    chain
+                        .iter()
+                        .map(|&s| grid.values()[corner[s] as usize * k + c])
+                };
+                vals().any(|x| x <= 0.0) && vals().any(|x| x >= 0.0)
+            });
+            if admits {
+                out.rows.extend(chain.iter().map(|&s| corner[s]));
+                out.chains.extend(chain[1..].iter().map(|&s| s as u32));
+            }
+        }
+    }
+    out
+}
+
+/// Scan grids for the candidate tests: exact zeros at lattice vertices, NaN regions, and
+/// k = 1, 2, 3.
+fn scan_grids() -> Vec<(String, ScanGrid)> {
+    let grid = |f: &dyn ImplicitFunction, tri: &Triangulation, half: f64| {
+        let opts = TraceOptions {
+            bbox: Some(cube(tri.dim(), half)),
+            ..TraceOptions::default()
+        };
+        scan_grid(f, tri, &CpuOracle::new(f), &opts).unwrap()
+    };
+    let eighth = Triangulation::custom(vec![
+        vec![0.125, 0.0, 0.0],
+        vec![0.0, 0.125, 0.0],
+        vec![0.0, 0.0, 0.125],
+    ])
+    .build()
+    .unwrap();
+    let sphere = EquationSystem::parse_simple(3, &["x^2 + y^2 + z^2 - 1"]).unwrap();
+    let holed = isomesh::expr::ClosureFunction::new(3, 2, |x, o| {
+        o[0] = x[0];
+        o[1] = if x[1] > 0.5 {
+            f64::NAN
+        } else {
+            x[1] * x[1] + x[2] - 0.25
+        };
+    })
+    .unwrap();
+    let mut out = vec![
+        (
+            "sphere, zeros at vertices".into(),
+            grid(&sphere, &eighth, 1.3),
+        ),
+        ("NaN for y > 0.5, k = 2".into(), grid(&holed, &eighth, 1.0)),
+    ];
+    for (name, params, edge, half) in [
+        ("flat-torus", vec![], 0.3, 1.2),
+        ("sphere", vec![("m", 2.0), ("d", 5.0)], 0.6, 1.2),
+    ] {
+        let p = problem(name, &params, edge);
+        let tri = p.triangulation.build(p.dim()).unwrap();
+        out.push((name.into(), grid(&p.system, &tri, half)));
+    }
+    out
+}
+
+#[test]
+fn the_scan_generates_every_chain_whose_signs_admit_a_zero() {
+    for (what, grid) in scan_grids() {
+        let want = brute_candidates(&grid);
+        assert!(want.count(grid.codim()) > 100, "{what}: too few candidates");
+        let got = isomesh::cpu::scan::candidates(&grid, 0..grid.len());
+        assert!(
+            got == want,
+            "{what}: {} vs {}",
+            got.rows.len(),
+            want.rows.len()
+        );
+        // In pieces, as the scan's batches run.
+        let mut pieces = Candidates::default();
+        for start in (0..grid.len()).step_by(777) {
+            let end = (start + 777).min(grid.len());
+            pieces.append(&mut isomesh::cpu::scan::candidates(&grid, start..end));
+        }
+        assert!(pieces == want, "{what}: batches differ");
+    }
+}
+
+#[test]
+fn the_scan_grid_holds_exactly_the_vertices_near_its_box() {
+    // Box [-h, h]^d off centre by `shift`; the grid holds the vertices within two edges.
+    let cases: Vec<(&str, Triangulation, f64, f64)> = vec![
+        (
+            "Coxeter d=2",
+            Triangulation::coxeter(2).edge(0.3).build().unwrap(),
+            1.0,
+            0.0,
+        ),
+        (
+            "Coxeter d=3, offset, rotated",
+            Triangulation::coxeter(3)
+                .edge(0.4)
+                .offset_seed(3)
+                .rotation_seed(5)
+                .build()
+                .unwrap(),
+            0.9,
+            0.17,
+        ),
+        (
+            "Freudenthal d=4, offset",
+            Triangulation::freudenthal(4)
+                .edge(0.7)
+                .offset_seed(1)
+                .build()
+                .unwrap(),
+            0.6,
+            -0.3,
+        ),
+        (
+            "Coxeter d=5",
+            Triangulation::coxeter(5).edge(0.8).build().unwrap(),
+            0.5,
+            0.1,
+        ),
+        (
+            "sheared d=3",
+            Triangulation::custom(vec![
+                vec![0.2, 0.15, 0.0],
+                vec![0.0, 0.2, -0.1],
+                vec![0.05, 0.0, 0.25],
+            ])
+            .build()
+            .unwrap(),
+            0.8,
+            0.05,
+        ),
+    ];
+    for (what, tri, half, shift) in cases {
+        let d = tri.dim();
+        let probe = isomesh::expr::ClosureFunction::new(d, 1, |x, o| o[0] = x[0]).unwrap();
+        let bbox: Vec<[f64; 2]> = (0..d).map(|_| [shift - half, shift + half]).collect();
+        let opts = TraceOptions {
+            bbox: Some(bbox.clone()),
+            ..TraceOptions::default()
+        };
+        let grid = scan_grid(&probe, &tri, &CpuOracle::new(&probe), &opts).unwrap();
+        let reach = 2.0 * tri.edge();
+        let slack = 1e-7;
+        let within = |x: &[f64], r: f64| {
+            bbox.iter()
+                .zip(x)
+                .all(|([l, h], v)| *v >= l - r && *v <= h + r)
+        };
+        // Every held vertex is near the box, once.
+        let (mut v, mut x) = (vec![0i32; d], vec![0.0; d]);
+        let mut held = HashSet::new();
+        for i in 0..grid.len() {
+            grid.coords(i, &mut v);
+            tri.vertex_coords(&v, &mut x);
+            assert!(
+                within(&x, reach + slack),
+                "{what}: {v:?} is far from the box"
+            );
+            assert!(held.insert(v.clone()), "{what}: {v:?} held twice");
+            assert_eq!(grid.values()[i], x[0], "{what}: f at {v:?}");
+        }
+        // Every lattice vertex near the box is held: all lattice points of the box around
+        // the grown box's corners.
+        let (mut lo, mut hi) = (vec![i64::MAX; d], vec![i64::MIN; d]);
+        let mut u = vec![0.0; d];
+        for corner in 0..1usize << d {
+            let c: Vec<f64> = (0..d)
+                .map(|j| {
+                    bbox[j][corner >> j & 1] + if corner >> j & 1 == 1 { reach } else { -reach }
+                })
+                .collect();
+            tri.point_to_lattice(&c, &mut u);
+            for j in 0..d {
+                lo[j] = lo[j].min(u[j].floor() as i64 - 1);
+                hi[j] = hi[j].max(u[j].ceil() as i64 + 1);
+            }
+        }
+        let mut near = 0;
+        let mut v = lo.iter().map(|&l| l as i32).collect::<Vec<_>>();
+        'all: loop {
+            tri.vertex_coords(&v, &mut x);
+            if within(&x, reach - slack) {
+                assert!(
+                    held.contains(&v),
+                    "{what}: {v:?} is near the box but not held"
+                );
+                near += 1;
+            }
+            for j in 0..d {
+                if (v[j] as i64) < hi[j] {
+                    v[j] += 1;
+                    continue 'all;
+                }
+                v[j] = lo[j] as i32;
+            }
+            break;
+        }
+        assert!(
+            near > 100 && near <= grid.len(),
+            "{what}: {near} near, {} held",
+            grid.len()
+        );
+    }
 }

@@ -1,5 +1,5 @@
 //! The CPU side: batch evaluation of compiled expressions, the intersection test, the
-//! door-in/door-out pivot of tracing, and the twin of the GPU's vertex shader.
+//! door-in/door-out pivot of tracing, and the twins of the GPU's vertex and scan shaders.
 
 /// Evaluates `$body` with `$m` bound to `$n`, in one arm per n = 2..=9 and a general arm
 /// for the rest: code inlined into an arm sees n as a constant, so its loops unroll and its
@@ -20,4 +20,5 @@ pub(crate) use unrolled;
 pub mod decide;
 pub mod pivot;
 pub mod program;
+pub mod scan;
 pub mod vertices;

@@ -19,6 +19,7 @@
 
 mod engine;
 mod exhaustive;
+mod grid;
 mod level;
 mod oracle;
 mod region;
@@ -33,6 +34,7 @@ use std::time::Instant;
 use serde::Serialize;
 
 pub use exhaustive::MAX_SCAN_DIM;
+pub use grid::ScanGrid;
 pub use oracle::{CpuOracle, Oracle};
 pub use region::{coord_bits, in_box, lattice_bounds, Domain};
 pub use seeds::SEED_TOLERANCE;
@@ -491,13 +493,28 @@ pub fn exhaustive(
     opts: &TraceOptions,
 ) -> Result<Sample> {
     let ctx = context(f, tri, oracle, opts)?;
-    if opts.bbox.is_none() {
-        return Err(Error::Trace(
-            "the exhaustive scan needs a box (spec `box`, or --box)".into(),
-        ));
-    }
+    scan_box(opts)?;
     let words = ctx.codec.words();
     warm::warm(|| with_width!(words, exhaustive_with(ctx)))
+}
+
+fn scan_box<'a>(opts: &'a TraceOptions) -> Result<&'a [[f64; 2]]> {
+    opts.bbox.as_deref().ok_or_else(|| {
+        Error::Trace("the exhaustive scan needs a box (spec `box`, or --box)".into())
+    })
+}
+
+/// The lattice vertices the exhaustive scan of `opts`' box reads, with f (from `oracle`) and
+/// sign codes at each: what [`Oracle::scan_candidates`] generates candidates from. For
+/// comparing candidate generators; [`exhaustive`] builds its own.
+pub fn scan_grid(
+    f: &dyn ImplicitFunction,
+    tri: &Triangulation,
+    oracle: &dyn Oracle,
+    opts: &TraceOptions,
+) -> Result<ScanGrid> {
+    let ctx = context(f, tri, oracle, opts)?;
+    grid::build(&ctx, scan_box(opts)?)
 }
 
 fn exhaustive_with<const W: usize>(ctx: TraceContext) -> Result<Sample> {

@@ -2,9 +2,13 @@
 //! same on every backend: values of f at lattice vertices, then decisions on k-simplices given
 //! as rows of vertex indices.
 
+use std::ops::Range;
+
 use rayon::prelude::*;
 
+use super::ScanGrid;
 use crate::cpu::decide::{Decider, Status};
+use crate::cpu::scan::{self, Candidates};
 use crate::error::Result;
 use crate::expr::ImplicitFunction;
 use crate::triangulation::Triangulation;
@@ -40,6 +44,13 @@ pub trait Oracle: Sync {
         status: &mut [Status],
         lambda: &mut [f64],
     ) -> Result<u64>;
+
+    /// The exhaustive scan's candidate k-simplices in the cubes based at the grid vertices
+    /// `cubes`, in order of base, then chain. Every backend must give exactly
+    /// [`scan::candidates`], which is the default.
+    fn scan_candidates(&self, grid: &ScanGrid, cubes: Range<usize>) -> Result<Candidates> {
+        Ok(scan::candidates(grid, cubes))
+    }
 }
 
 /// The reference oracle: f64 on the CPU, parallel with rayon.

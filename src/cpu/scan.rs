@@ -1,0 +1,203 @@
+//! Candidate generation of the exhaustive scan on the CPU, the twin of `shaders/scan.wgsl`.
+//!
+//! A k-simplex based at the lattice vertex v0 has the vertices v0 + e_S for a chain
+//! {} = S_0 < S_1 < .. < S_k of subsets of the d axes: it lies in the unit cube at v0. It can
+//! be crossed only where every component of f has a value <= 0 and a value >= 0 at its
+//! vertices, and those are all the scan reads of f: a sign code per vertex, two bits per
+//! component. The codes of a set of vertices are OR-ed, and the set passes when every
+//! component has both bits. Integer operations only, so the GPU generates exactly these
+//! candidates.
+//!
+//! Per cube: the storage index of each of its 2^d corners, the OR of the codes over the
+//! supersets of every corner set (when the whole cube fails, nothing else is done), then the
+//! chains depth first, in increasing order of (S_1, .., S_k), pruned where the chain so far
+//! and every superset of its last set cannot pass together.
+
+use std::ops::Range;
+
+use rayon::prelude::*;
+
+use crate::trace::ScanGrid;
+
+/// The code bit of vertices whose cube is scanned (within one edge of the box).
+pub const BASE: u32 = 1 << 31;
+/// Largest k for sign codes (two bits per component, below [`BASE`]).
+pub const MAX_CODE_COMPONENTS: usize = 15;
+
+/// The sign code of f's values at one vertex: bit 2c when component c is <= 0, bit 2c + 1
+/// when it is >= 0 (both at an exact zero, neither at NaN).
+#[inline]
+pub fn sign_code(values: &[f64]) -> u32 {
+    values.iter().enumerate().fold(0, |code, (c, &v)| {
+        code | ((v <= 0.0) as u32) << (2 * c) | ((v >= 0.0) as u32) << (2 * c + 1)
+    })
+}
+
+/// The bits a passing OR of codes holds for k components.
+#[inline]
+pub fn pass_mask(k: usize) -> u32 {
+    ((1u64 << (2 * k)) - 1) as u32
+}
+
+/// Candidate k-simplices: per candidate, k + 1 storage indices of grid vertices (the chain's
+/// corners, base first) and the k corner sets S_1 < .. < S_k (bit j: axis j).
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct Candidates {
+    /// Rows of k + 1 vertex indices.
+    pub rows: Vec<u32>,
+    /// Rows of k corner sets.
+    pub chains: Vec<u32>,
+}
+
+impl Candidates {
+    /// How many candidates there are, for codimension k.
+    pub fn count(&self, k: usize) -> usize {
+        self.rows.len() / (k + 1)
+    }
+
+    /// Appends `other`.
+    pub fn append(&mut self, other: &mut Candidates) {
+        self.rows.append(&mut other.rows);
+        self.chains.append(&mut other.chains);
+    }
+}
+
+/// Storage index of every corner of the cube based at vertex `cube` (corner set s, bit j: +1
+/// on axis j) into `corner`; false when a corner is not in the grid. Rows are looked up once
+/// per subset of axes 1..d-1, the axis-0 step is the next vertex of a row.
+pub fn cube_corners(grid: &ScanGrid, cube: usize, corner: &mut [u32]) -> bool {
+    let d = grid.dim();
+    let rows = grid.rows();
+    let own = rows[grid.row_of(cube)];
+    let u0 = own.start + (cube - own.offset) as i64;
+    let top = grid.top_axes(own.id);
+    for t in 0..1usize << (d - 1) {
+        if t as u32 & top != 0 {
+            return false;
+        }
+        let id = own.id
+            + (1..d)
+                .filter(|&j| t >> (j - 1) & 1 == 1)
+                .map(|j| grid.stride(j))
+                .sum::<usize>();
+        let Some(r) = grid.find_row(id) else {
+            return false;
+        };
+        let row = rows[r];
+        for b in 0..2 {
+            let u = u0 + b as i64;
+            if u < row.start || u >= row.start + row.len as i64 {
+                return false;
+            }
+            corner[t << 1 | b] = (row.offset as i64 + u - row.start) as u32;
+        }
+    }
+    true
+}
+
+/// Appends the candidates of the cube based at vertex `cube` to `out`; `scratch` is reused
+/// across calls.
+pub fn cube_candidates(grid: &ScanGrid, cube: usize, scratch: &mut Vec<u32>, out: &mut Candidates) {
+    let codes = grid.codes();
+    if codes[cube] & BASE == 0 {
+        return;
+    }
+    let (d, k) = (grid.dim(), grid.codim());
+    let corners = 1usize << d;
+    scratch.resize(2 * corners, 0);
+    let (corner, sup) = scratch.split_at_mut(corners);
+    if !cube_corners(grid, cube, corner) {
+        return;
+    }
+    let mask = pass_mask(k);
+    for s in 0..corners {
+        sup[s] = codes[corner[s] as usize];
+    }
+    for j in 0..d {
+        for s in 0..corners {
+            if s & (1 << j) == 0 {
+                sup[s] |= sup[s | 1 << j];
+            }
+        }
+    }
+    if sup[0] & mask != mask {
+        return;
+    }
+    // Depth first over chains; at depth i the chain holds sets[0..=i] and their codes' OR.
+    let full = (corners - 1) as u32;
+    let code = |s: u32| codes[corner[s as usize] as usize];
+    let mut sets = [0u32; MAX_CODE_COMPONENTS + 1];
+    let mut run = [0u32; MAX_CODE_COMPONENTS + 1];
+    let mut add = [0u32; MAX_CODE_COMPONENTS + 1];
+    run[0] = code(0);
+    let mut depth = 0;
+    let mut descend = true;
+    loop {
+        if descend {
+            let s = sets[depth];
+            let free = full & !s;
+            if depth == k {
+                if run[k] & mask == mask {
+                    out.rows
+                        .extend(sets[..=k].iter().map(|&s| corner[s as usize]));
+                    out.chains.extend_from_slice(&sets[1..=k]);
+                }
+            } else if (run[depth] | sup[s as usize]) & mask == mask
+                && free.count_ones() as usize >= k - depth
+            {
+                add[depth] = free & free.wrapping_neg();
+                sets[depth + 1] = s | add[depth];
+                run[depth + 1] = run[depth] | code(sets[depth + 1]);
+                depth += 1;
+                continue;
+            }
+            descend = false;
+        }
+        // Back up to the deepest set that has a next superset, in increasing order.
+        if depth == 0 {
+            return;
+        }
+        depth -= 1;
+        let s = sets[depth];
+        let free = full & !s;
+        if add[depth] == free {
+            continue;
+        }
+        add[depth] = add[depth].wrapping_sub(free) & free;
+        sets[depth + 1] = s | add[depth];
+        run[depth + 1] = run[depth] | code(sets[depth + 1]);
+        depth += 1;
+        descend = true;
+    }
+}
+
+/// The candidates of the cubes based at the vertices `cubes`, in order of base, then of
+/// (S_1, .., S_k); in parallel.
+pub fn candidates(grid: &ScanGrid, cubes: Range<usize>) -> Candidates {
+    let chunk = cubes
+        .len()
+        .div_ceil(8 * rayon::current_num_threads())
+        .max(256);
+    let end = cubes.end;
+    let parts: Vec<Candidates> = (cubes.start..end)
+        .step_by(chunk)
+        .collect::<Vec<_>>()
+        .into_par_iter()
+        .map(|start| {
+            let mut scratch = Vec::new();
+            let mut out = Candidates::default();
+            for cube in start..(start + chunk).min(end) {
+                cube_candidates(grid, cube, &mut scratch, &mut out);
+            }
+            out
+        })
+        .collect();
+    let mut all = Candidates {
+        rows: Vec::with_capacity(parts.iter().map(|p| p.rows.len()).sum()),
+        chains: Vec::with_capacity(parts.iter().map(|p| p.chains.len()).sum()),
+    };
+    for mut p in parts {
+        all.append(&mut p);
+    }
+    all
+}

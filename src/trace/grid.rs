@@ -1,0 +1,397 @@
+// Index loops over lattice axes read as the coordinates they are.
+#![allow(clippy::needless_range_loop)]
+//! The lattice vertices of an exhaustive scan: which are near its box, f at each, and the sign
+//! code that candidate generation reads (on the CPU, [`crate::cpu::scan`]; on a GPU,
+//! `shaders/scan.wgsl`).
+
+use rayon::prelude::*;
+
+use super::exhaustive::MAX_SCAN_DIM;
+use super::region::{in_box, lattice_bounds};
+use super::TraceContext;
+use crate::cpu::scan::{sign_code, BASE};
+use crate::error::{Error, Result};
+use crate::triangulation::MAX_DIM;
+
+/// Vertices per evaluation slab.
+const SLAB: usize = 1 << 16;
+
+/// The lattice vertices of an exhaustive scan (those within two edges of its box), with f and
+/// a sign code at each.
+///
+/// Vertices lie in rows along lattice axis 0: the row with id r (its coordinates on axes
+/// 1..d-1 are the digits of r in the mixed radix `n[1..]`, from `lo`) holds u_0 in
+/// `start..start + len`, stored from `offset` on. Only rows that hold vertices are kept,
+/// sorted by id. Build it with [`scan_grid`](crate::trace::scan_grid).
+pub struct ScanGrid {
+    lo: Vec<i64>,
+    n: Vec<usize>,
+    rows: Vec<Row>,
+    total: usize,
+    k: usize,
+    values: Vec<f64>,
+    codes: Vec<u32>,
+}
+
+/// One row of a [`ScanGrid`].
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Row {
+    pub id: usize,
+    pub start: i64,
+    pub len: u32,
+    pub offset: usize,
+}
+
+impl ScanGrid {
+    /// Lattice vertices held.
+    pub fn len(&self) -> usize {
+        self.total
+    }
+
+    /// Whether no vertex is held.
+    pub fn is_empty(&self) -> bool {
+        self.total == 0
+    }
+
+    /// The ambient dimension d.
+    pub fn dim(&self) -> usize {
+        self.n.len()
+    }
+
+    /// The codimension k.
+    pub fn codim(&self) -> usize {
+        self.k
+    }
+
+    /// f at every vertex, rows of k.
+    pub fn values(&self) -> &[f64] {
+        &self.values
+    }
+
+    /// The sign code of every vertex ([`crate::cpu::scan::sign_code`], with
+    /// [`BASE`](crate::cpu::scan::BASE) set on the vertices whose cube is scanned).
+    pub fn codes(&self) -> &[u32] {
+        &self.codes
+    }
+
+    /// The rows, sorted by id.
+    pub(crate) fn rows(&self) -> &[Row] {
+        &self.rows
+    }
+
+    /// Rows per unit step along lattice axis j (j >= 1) in row ids.
+    pub(crate) fn stride(&self, j: usize) -> usize {
+        self.n[1..j].iter().product()
+    }
+
+    /// The axes j >= 1 (as bit j - 1) on which row `id` is at the top of the grid.
+    pub(crate) fn top_axes(&self, mut id: usize) -> u32 {
+        let mut top = 0;
+        for j in 1..self.n.len() {
+            if id % self.n[j] == self.n[j] - 1 {
+                top |= 1 << (j - 1);
+            }
+            id /= self.n[j];
+        }
+        top
+    }
+
+    /// The index of the row holding vertex `idx`.
+    pub(crate) fn row_of(&self, idx: usize) -> usize {
+        self.rows.partition_point(|row| row.offset <= idx) - 1
+    }
+
+    /// The index of the row with id `id`, if it is held.
+    pub(crate) fn find_row(&self, id: usize) -> Option<usize> {
+        self.rows.binary_search_by_key(&id, |row| row.id).ok()
+    }
+
+    /// Lattice coordinates of axes 1..d-1 of row r.
+    fn row_coords(&self, mut r: usize, out: &mut [i32]) {
+        for j in 1..self.n.len() {
+            out[j] = (self.lo[j] + (r % self.n[j]) as i64) as i32;
+            r /= self.n[j];
+        }
+    }
+
+    /// Lattice coordinates of vertex `idx` into `out` (d of them).
+    pub fn coords(&self, idx: usize, out: &mut [i32]) {
+        let r = self.rows.partition_point(|row| row.offset <= idx) - 1;
+        self.row_coords(self.rows[r].id, out);
+        out[0] = (self.rows[r].start + (idx - self.rows[r].offset) as i64) as i32;
+    }
+}
+
+/// The rows of lattice vertices whose position lies in `near` (a grown box).
+fn near_rows(ctx: &TraceContext, near: &[[f64; 2]]) -> Result<ScanGrid> {
+    let d = ctx.d;
+    let (lo, hi) = lattice_bounds(ctx.tri, near);
+    let n: Vec<usize> = lo
+        .iter()
+        .zip(&hi)
+        .map(|(l, h)| (h - l + 2) as usize)
+        .collect();
+    let rows_total = n[1..].iter().try_fold(1usize, |a, &b| a.checked_mul(b));
+    // Row ids must fit.
+    if !matches!(rows_total, Some(r) if r < 1 << 40) {
+        return Err(Error::Trace(format!(
+            "the exhaustive scan of this box needs {:.3e} lattice rows, over the memory \
+             limit: use a smaller box or a larger edge",
+            n[1..].iter().map(|&v| v as f64).product::<f64>()
+        )));
+    }
+    let mut zero = vec![0i32; d];
+    let mut origin = vec![0.0; d];
+    ctx.tri.vertex_coords(&zero, &mut origin);
+    // Refuse before enumerating: about vol(box) / |det A| vertices, each k values.
+    let a = ctx.tri.matrix();
+    let volume: f64 = near.iter().map(|[lo, hi]| hi - lo).product();
+    let estimate = crate::linalg::Lu::new(&a, d).map_or(f64::INFINITY, |lu| volume / lu.abs_det());
+    let bytes = estimate * (ctx.k as f64 * 8.0 + 12.0);
+    if !(bytes <= ctx.max_memory as f64 && estimate < u32::MAX as f64) {
+        return Err(Error::Trace(format!(
+            "the exhaustive scan of this box needs about {estimate:.3e} lattice vertices, \
+             about {:.1} GiB, over the memory limit of {:.1} GiB or the 2^32 vertex cap: use \
+             a smaller box or a larger edge",
+            bytes / (1u64 << 30) as f64,
+            ctx.max_memory as f64 / (1u64 << 30) as f64
+        )));
+    }
+    zero[0] = 1;
+    let mut step = vec![0.0; d];
+    ctx.tri.vertex_coords(&zero, &mut step);
+    for (s, o) in step.iter_mut().zip(&origin) {
+        *s -= o;
+    }
+    // Per row, the u_0 interval where the vertex lies in the grown box.
+    let span = |r: usize, x: &[f64]| -> Option<(usize, i64, u32)> {
+        let (mut t0, mut t1) = (lo[0] as f64, (hi[0] + 1) as f64);
+        for i in 0..d {
+            let [a, b] = near[i];
+            if step[i] == 0.0 {
+                if x[i] < a || x[i] > b {
+                    return None;
+                }
+            } else {
+                let (p, q) = ((a - x[i]) / step[i], (b - x[i]) / step[i]);
+                t0 = t0.max(p.min(q));
+                t1 = t1.min(p.max(q));
+            }
+        }
+        let (s, e) = (t0.ceil() as i64, t1.floor() as i64);
+        (e >= s).then(|| (r, s, (e - s + 1) as u32))
+    };
+    let walk = RowWalk::new(ctx, &lo, &n, near);
+    let spans: Vec<(usize, i64, u32)> = if d == 1 {
+        span(0, &origin).into_iter().collect()
+    } else {
+        // The values of the top axis in parallel, each walked depth first: rows come out
+        // sorted by id.
+        let mut s = [0.0; MAX_DIM];
+        s[..d].copy_from_slice(ctx.tri.offset());
+        let (first, last) = walk.values(d - 1, &s).unwrap_or((1, 0));
+        (first..=last)
+            .into_par_iter()
+            .flat_map_iter(|t| {
+                let mut u = [0i64; MAX_DIM];
+                u[d - 1] = t;
+                let mut out = Vec::new();
+                walk.rows(d - 1, &mut u, &s, &mut |id, x| out.extend(span(id, x)));
+                out
+            })
+            .collect()
+    };
+    let total: usize = spans.iter().map(|s| s.2 as usize).sum();
+    let need = total as u64 * (ctx.k as u64 * 8 + 12) + spans.len() as u64 * 32;
+    if need > ctx.max_memory {
+        return Err(Error::Trace(format!(
+            "the exhaustive scan of this box needs {total} lattice vertices, about {:.1} GiB, \
+             over the memory limit of {:.1} GiB: use a smaller box or a larger edge",
+            need as f64 / (1u64 << 30) as f64,
+            ctx.max_memory as f64 / (1u64 << 30) as f64
+        )));
+    }
+    let mut offset = 0;
+    let rows = spans
+        .into_iter()
+        .map(|(id, start, len)| {
+            let row = Row {
+                id,
+                start,
+                len,
+                offset,
+            };
+            offset += len as usize;
+            row
+        })
+        .collect();
+    Ok(ScanGrid {
+        lo,
+        n,
+        rows,
+        total,
+        k: ctx.k,
+        values: Vec::new(),
+        codes: Vec::new(),
+    })
+}
+
+/// The depth-first walk over the rows that can hold vertices in a box: on each axis from d - 1
+/// down to 1, only the values from which x = b + A u can still reach the box, with the axes
+/// below free over their whole ranges (interval bounds, padded against rounding).
+struct RowWalk<'a> {
+    ctx: &'a TraceContext<'a>,
+    a: Vec<f64>,
+    lo: &'a [i64],
+    n: &'a [usize],
+    near: &'a [[f64; 2]],
+    /// Per axis j and coordinate r, the range of sum_{i < j} A[r][i] u_i over the axes' ranges.
+    free: Vec<Vec<[f64; 2]>>,
+    pad: f64,
+}
+
+impl<'a> RowWalk<'a> {
+    fn new(ctx: &'a TraceContext, lo: &'a [i64], n: &'a [usize], near: &'a [[f64; 2]]) -> Self {
+        let d = ctx.d;
+        let a = ctx.tri.matrix();
+        let mut free = vec![vec![[0.0; 2]; d]; d];
+        for j in 1..d {
+            for r in 0..d {
+                let i = j - 1;
+                let (p, q) = (
+                    a[r * d + i] * lo[i] as f64,
+                    a[r * d + i] * (lo[i] + n[i] as i64 - 1) as f64,
+                );
+                let [fmin, fmax] = free[j - 1][r];
+                free[j][r] = [fmin + p.min(q), fmax + p.max(q)];
+            }
+        }
+        let scale = near
+            .iter()
+            .chain(std::iter::once(&[ctx.tri.edge(), 0.0]))
+            .map(|[l, h]| l.abs().max(h.abs()))
+            .fold(1.0, f64::max);
+        RowWalk {
+            ctx,
+            a,
+            lo,
+            n,
+            near,
+            free,
+            pad: 1e-9 * scale,
+        }
+    }
+
+    /// The values of u_j from which the box can be reached, where `s` is b plus the
+    /// contribution of the axes above j.
+    fn values(&self, j: usize, s: &[f64]) -> Option<(i64, i64)> {
+        let d = self.ctx.d;
+        let (mut t0, mut t1) = (
+            self.lo[j] as f64,
+            (self.lo[j] + self.n[j] as i64 - 1) as f64,
+        );
+        for r in 0..d {
+            let c = self.a[r * d + j];
+            let [fmin, fmax] = self.free[j][r];
+            let [lo, hi] = self.near[r];
+            let (below, above) = (lo - self.pad - s[r] - fmax, hi + self.pad - s[r] - fmin);
+            if c == 0.0 {
+                if below > 0.0 || above < 0.0 {
+                    return None;
+                }
+            } else {
+                let (p, q) = (below / c, above / c);
+                t0 = t0.max(p.min(q));
+                t1 = t1.min(p.max(q));
+            }
+        }
+        let (first, last) = (t0.ceil() as i64, t1.floor() as i64);
+        (last >= first).then_some((first, last))
+    }
+
+    /// Calls `row(id, x)` for every row reached below axis j, where u holds the axes above
+    /// and at j and `s` is b plus the contribution of the axes above j; x is the row's vertex
+    /// with u_0 = 0.
+    fn rows(
+        &self,
+        j: usize,
+        u: &mut [i64; MAX_DIM],
+        s: &[f64],
+        row: &mut dyn FnMut(usize, &[f64]),
+    ) {
+        let d = self.ctx.d;
+        let mut t_s = [0.0; MAX_DIM];
+        for r in 0..d {
+            t_s[r] = s[r] + self.a[r * d + j] * u[j] as f64;
+        }
+        if j == 1 {
+            let mut v = [0i32; MAX_DIM];
+            let mut id = 0;
+            let mut stride = 1;
+            for i in 1..d {
+                v[i] = u[i] as i32;
+                id += (u[i] - self.lo[i]) as usize * stride;
+                stride *= self.n[i];
+            }
+            let mut x = [0.0; MAX_DIM];
+            self.ctx.tri.vertex_coords(&v[..d], &mut x[..d]);
+            row(id, &x[..d]);
+            return;
+        }
+        if let Some((first, last)) = self.values(j - 1, &t_s) {
+            for t in first..=last {
+                u[j - 1] = t;
+                self.rows(j - 1, u, &t_s, row);
+            }
+        }
+    }
+}
+
+/// The scan's grid for `bbox`: vertices within two edges of it, f at each (through the
+/// oracle), and sign codes, with [`BASE`] on the vertices within one edge of it (every
+/// k-simplex that can meet the box is based at one of those, and its cube's corners lie in
+/// the grid).
+pub(crate) fn build(ctx: &TraceContext, bbox: &[[f64; 2]]) -> Result<ScanGrid> {
+    let (d, k) = (ctx.d, ctx.k);
+    if d > MAX_SCAN_DIM {
+        return Err(Error::Trace(format!(
+            "the exhaustive scan handles d <= {MAX_SCAN_DIM} (d = {d}); trace from seeds instead"
+        )));
+    }
+    let edge = ctx.tri.edge();
+    let grown =
+        |r: f64| -> Vec<[f64; 2]> { bbox.iter().map(|[lo, hi]| [lo - r, hi + r]).collect() };
+    let near_base = grown(edge);
+    let mut grid = near_rows(ctx, &grown(2.0 * edge + 1e-9 * (1.0 + edge)))?;
+    let total = grid.total;
+    if total >= u32::MAX as usize {
+        return Err(Error::Trace(format!(
+            "the exhaustive scan of this box needs {total} lattice vertices (> 2^32): use a \
+             smaller box or a larger edge"
+        )));
+    }
+    grid.values = vec![0.0; total * k];
+    grid.codes = vec![0; total];
+    for start in (0..total).step_by(SLAB) {
+        super::exhaustive::cancelled(ctx)?;
+        let end = (start + SLAB).min(total);
+        let mut lattice = vec![0i32; (end - start) * d];
+        lattice
+            .par_chunks_mut(d)
+            .enumerate()
+            .for_each(|(i, v)| grid.coords(start + i, v));
+        let values = &mut grid.values[start * k..end * k];
+        ctx.oracle.eval_vertices(ctx.tri, &lattice, values)?;
+        grid.codes[start..end]
+            .par_iter_mut()
+            .zip(lattice.par_chunks(d))
+            .zip(values.par_chunks(k))
+            .for_each(|((code, v), f)| {
+                let mut x = [0.0f64; MAX_DIM];
+                ctx.tri.vertex_coords(v, &mut x[..d]);
+                let base = if in_box(&near_base, &x[..d]) { BASE } else { 0 };
+                *code = sign_code(f) | base;
+            });
+    }
+    Ok(grid)
+}
