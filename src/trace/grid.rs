@@ -116,7 +116,7 @@ impl ScanGrid {
 
     /// Lattice coordinates of vertex `idx` into `out` (d of them).
     pub fn coords(&self, idx: usize, out: &mut [i32]) {
-        let r = self.rows.partition_point(|row| row.offset <= idx) - 1;
+        let r = self.row_of(idx);
         self.row_coords(self.rows[r].id, out);
         out[0] = (self.rows[r].start + (idx - self.rows[r].offset) as i64) as i32;
     }
@@ -181,7 +181,7 @@ fn near_rows(ctx: &TraceContext, near: &[[f64; 2]]) -> Result<ScanGrid> {
         let (s, e) = (t0.ceil() as i64, t1.floor() as i64);
         (e >= s).then(|| (r, s, (e - s + 1) as u32))
     };
-    let walk = RowWalk::new(ctx, &lo, &n, near);
+    let walk = RowWalk::new(ctx, a, &lo, &n, near);
     let spans: Vec<(usize, i64, u32)> = if d == 1 {
         span(0, &origin).into_iter().collect()
     } else {
@@ -251,9 +251,15 @@ struct RowWalk<'a> {
 }
 
 impl<'a> RowWalk<'a> {
-    fn new(ctx: &'a TraceContext, lo: &'a [i64], n: &'a [usize], near: &'a [[f64; 2]]) -> Self {
+    /// The walk for x = b + A u (`a`: A, row-major) over the axis ranges `lo`, `n`.
+    fn new(
+        ctx: &'a TraceContext,
+        a: Vec<f64>,
+        lo: &'a [i64],
+        n: &'a [usize],
+        near: &'a [[f64; 2]],
+    ) -> Self {
         let d = ctx.d;
-        let a = ctx.tri.matrix();
         let mut free = vec![vec![[0.0; 2]; d]; d];
         for j in 1..d {
             for r in 0..d {
