@@ -89,6 +89,12 @@ fn main() -> ExitCode {
                     a.max_storage_binding >> 20
                 );
             }
+            if !list.is_empty() && std::env::var_os("WGPU_BACKEND").is_none() {
+                println!(
+                    "(GL is probed only where no Vulkan, Metal or Dx12 adapter runs compute; \
+                     WGPU_BACKEND=gl lists its adapters)"
+                );
+            }
             Ok(())
         }
         Some(Command::Presets) => {

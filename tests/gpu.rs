@@ -448,3 +448,56 @@ fn gpu_exhaustive_scans_give_the_cpu_sample_and_topology() {
         }
     }
 }
+
+#[test]
+fn one_gpu_oracle_serves_several_threads_at_once() {
+    let Some(g) = gpu() else { return };
+    let p = problem("sphere", &[("edge", 0.1)]);
+    let tri = p.triangulation.build(3).unwrap();
+    let opts = TraceOptions {
+        bbox: Some(cube(3, 1.2)),
+        ..TraceOptions::default()
+    };
+    let cpu = CpuOracle::new(&p.system);
+    let grid = scan_grid(&p.system, &tri, &cpu, &opts).unwrap();
+    // f32: every crossing's lambda comes from the CPU, so results compare bit for bit.
+    let oracle = GpuOracle::new(g, &p.system, Some(Precision::F32)).unwrap();
+    // Four threads on one oracle, each with its own share of the grid (so buffers of
+    // different sizes cross in the pools), alternating scans and decisions.
+    let shares: Vec<_> = (1..=4)
+        .map(|t| {
+            let cubes = 0..grid.len() * t / 4;
+            let cands = candidates(&grid, cubes.clone());
+            let m = cands.count(1);
+            let (mut status, mut lambda) = (vec![Status::Outside; m], vec![0.0; 2 * m]);
+            cpu.decide(grid.values(), &cands.rows, &mut status, &mut lambda)
+                .unwrap();
+            (cubes, cands, status, lambda)
+        })
+        .collect();
+    assert!(shares[0].1.count(1) > 1000, "too few candidates");
+    std::thread::scope(|s| {
+        for (t, (cubes, cands, status, lambda)) in shares.iter().enumerate() {
+            let (oracle, grid) = (&oracle, &grid);
+            s.spawn(move || {
+                for round in 0..4 {
+                    let got = oracle.scan_stage(grid, cubes.clone()).unwrap();
+                    assert!(
+                        got == *cands,
+                        "thread {t}, round {round}: candidates differ"
+                    );
+                    let m = status.len();
+                    let (mut st, mut lam) = (vec![Status::Outside; m], vec![0.0; 2 * m]);
+                    oracle
+                        .decide(grid.values(), &got.rows, &mut st, &mut lam)
+                        .unwrap();
+                    assert!(st == *status, "thread {t}, round {round}: decisions differ");
+                    for i in (0..m).filter(|&i| st[i].crossed()) {
+                        assert_eq!(lam[2 * i..2 * i + 2], lambda[2 * i..2 * i + 2]);
+                    }
+                }
+            });
+        }
+    });
+    assert!(oracle.stats().solved > 0);
+}

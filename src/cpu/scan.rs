@@ -62,28 +62,71 @@ impl Candidates {
     }
 }
 
+/// The rows that hold a cube's corners, found once per grid row and kept for the next cubes
+/// of that row (they share them: only the axis-0 position moves).
+#[derive(Default)]
+pub struct CornerRows {
+    /// The grid row of the cubes' base vertices, and its vertex range (empty before the
+    /// first lookup).
+    own: usize,
+    span: Range<usize>,
+    /// Per subset t of axes 1..d-1, the row holding corners t << 1 and t << 1 | 1; empty
+    /// when some corner row is missing (no cube of the row is whole).
+    rows: Vec<usize>,
+    /// Scratch for the corners' storage indices and the supersets' codes.
+    scratch: Vec<u32>,
+}
+
+impl CornerRows {
+    /// Looks up the corner rows of the cubes based in the grid row of vertex `cube`, unless
+    /// they are the ones held.
+    fn locate(&mut self, grid: &ScanGrid, cube: usize) {
+        if self.span.contains(&cube) {
+            return;
+        }
+        let d = grid.dim();
+        let all = grid.rows();
+        let r = grid.row_of(cube);
+        let own = all[r];
+        (self.own, self.span) = (r, own.offset..own.offset + own.len as usize);
+        self.rows.clear();
+        let top = grid.top_axes(own.id);
+        for t in 0..1usize << (d - 1) {
+            let id = own.id
+                + (1..d)
+                    .filter(|&j| t >> (j - 1) & 1 == 1)
+                    .map(|j| grid.stride(j))
+                    .sum::<usize>();
+            match grid.find_row(id) {
+                Some(found) if t as u32 & top == 0 => self.rows.push(found),
+                _ => {
+                    self.rows.clear();
+                    return;
+                }
+            }
+        }
+    }
+}
+
 /// Storage index of every corner of the cube based at vertex `cube` (corner set s, bit j: +1
 /// on axis j) into `corner`; false when a corner is not in the grid. Rows are looked up once
-/// per subset of axes 1..d-1, the axis-0 step is the next vertex of a row.
-pub fn cube_corners(grid: &ScanGrid, cube: usize, corner: &mut [u32]) -> bool {
-    let d = grid.dim();
-    let rows = grid.rows();
-    let own = rows[grid.row_of(cube)];
+/// per grid row and subset of axes 1..d-1 (`rows` keeps them); the axis-0 step is the next
+/// vertex of a row.
+pub fn cube_corners(
+    grid: &ScanGrid,
+    cube: usize,
+    rows: &mut CornerRows,
+    corner: &mut [u32],
+) -> bool {
+    rows.locate(grid, cube);
+    if rows.rows.is_empty() {
+        return false;
+    }
+    let all = grid.rows();
+    let own = all[rows.own];
     let u0 = own.start + (cube - own.offset) as i64;
-    let top = grid.top_axes(own.id);
-    for t in 0..1usize << (d - 1) {
-        if t as u32 & top != 0 {
-            return false;
-        }
-        let id = own.id
-            + (1..d)
-                .filter(|&j| t >> (j - 1) & 1 == 1)
-                .map(|j| grid.stride(j))
-                .sum::<usize>();
-        let Some(r) = grid.find_row(id) else {
-            return false;
-        };
-        let row = rows[r];
+    for (t, &r) in rows.rows.iter().enumerate() {
+        let row = all[r];
         for b in 0..2 {
             let u = u0 + b as i64;
             if u < row.start || u >= row.start + row.len as i64 {
@@ -95,23 +138,38 @@ pub fn cube_corners(grid: &ScanGrid, cube: usize, corner: &mut [u32]) -> bool {
     true
 }
 
-/// Appends the candidates of the cube based at vertex `cube` to `out`; `scratch` is reused
-/// across calls.
-pub fn cube_candidates(grid: &ScanGrid, cube: usize, scratch: &mut Vec<u32>, out: &mut Candidates) {
+/// Appends the candidates of the cube based at vertex `cube` to `out`; `rows` is reused
+/// across calls (fastest over consecutive cubes).
+pub fn cube_candidates(grid: &ScanGrid, cube: usize, rows: &mut CornerRows, out: &mut Candidates) {
     let codes = grid.codes();
     if codes[cube] & BASE == 0 {
         return;
     }
     let (d, k) = (grid.dim(), grid.codim());
     let corners = 1usize << d;
+    let mut scratch = std::mem::take(&mut rows.scratch);
     scratch.resize(2 * corners, 0);
     let (corner, sup) = scratch.split_at_mut(corners);
-    if !cube_corners(grid, cube, corner) {
-        return;
+    if cube_corners(grid, cube, rows, corner) {
+        chains(codes, k, corner, sup, out);
     }
+    rows.scratch = scratch;
+}
+
+/// The passing chains of one cube whose corners' storage indices are `corner`; `sup` is
+/// scratch of the same length.
+fn chains(codes: &[u32], k: usize, corner: &[u32], sup: &mut [u32], out: &mut Candidates) {
+    let corners = corner.len();
+    let d = corners.trailing_zeros() as usize;
     let mask = pass_mask(k);
+    // The whole cube first: most fail, and the OR over supersets is d times the work.
+    let mut any = 0;
     for s in 0..corners {
         sup[s] = codes[corner[s] as usize];
+        any |= sup[s];
+    }
+    if any & mask != mask {
+        return;
     }
     for j in 0..d {
         for s in 0..corners {
@@ -119,9 +177,6 @@ pub fn cube_candidates(grid: &ScanGrid, cube: usize, scratch: &mut Vec<u32>, out
                 sup[s] |= sup[s | 1 << j];
             }
         }
-    }
-    if sup[0] & mask != mask {
-        return;
     }
     // Depth first over chains; at depth i the chain holds sets[0..=i] and their codes' OR.
     let full = (corners - 1) as u32;
@@ -184,10 +239,10 @@ pub fn candidates(grid: &ScanGrid, cubes: Range<usize>) -> Candidates {
         .collect::<Vec<_>>()
         .into_par_iter()
         .map(|start| {
-            let mut scratch = Vec::new();
+            let mut rows = CornerRows::default();
             let mut out = Candidates::default();
             for cube in start..(start + chunk).min(end) {
-                cube_candidates(grid, cube, &mut scratch, &mut out);
+                cube_candidates(grid, cube, &mut rows, &mut out);
             }
             out
         })

@@ -43,8 +43,15 @@ impl AdapterSummary {
     }
 }
 
-fn instance() -> wgpu::Instance {
-    wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle())
+/// The backends to probe, in turn, until one offers a usable adapter: those named by
+/// `WGPU_BACKEND` when it is set; else Vulkan, Metal and Dx12, then GL. GL (no f64 in
+/// shaders) is left unloaded where it is not needed: Mesa's EGL stack, loaded next to
+/// lavapipe, can abort the process at exit (a double free as one of its threads ends).
+fn tiers() -> Vec<wgpu::Backends> {
+    match wgpu::Backends::from_env() {
+        Some(b) => vec![b],
+        None => vec![wgpu::Backends::PRIMARY, wgpu::Backends::SECONDARY],
+    }
 }
 
 /// Preference order: hardware first, then Vulkan/Metal/Dx12 before GL (GL has no f64).
@@ -65,23 +72,37 @@ fn rank(a: &wgpu::Adapter) -> (u8, u8, u8) {
     (ty, api, f64)
 }
 
-fn compute_adapters() -> Vec<wgpu::Adapter> {
-    let mut v: Vec<wgpu::Adapter> =
-        pollster::block_on(instance().enumerate_adapters(wgpu::Backends::all()))
-            .into_iter()
-            .filter(|a| {
-                a.get_downlevel_capabilities()
-                    .flags
-                    .contains(wgpu::DownlevelFlags::COMPUTE_SHADERS)
-            })
-            .collect();
-    v.sort_by_key(rank);
-    v
+/// The adapters that run compute shaders and pass `keep`, best first, from the first
+/// backend tier that has any.
+fn compute_adapters(keep: impl Fn(&wgpu::Adapter) -> bool) -> Vec<wgpu::Adapter> {
+    for backends in tiers() {
+        let mut desc = wgpu::InstanceDescriptor::new_without_display_handle();
+        desc.backends = backends;
+        let mut v: Vec<wgpu::Adapter> =
+            pollster::block_on(wgpu::Instance::new(desc).enumerate_adapters(backends))
+                .into_iter()
+                .filter(|a| {
+                    a.get_downlevel_capabilities()
+                        .flags
+                        .contains(wgpu::DownlevelFlags::COMPUTE_SHADERS)
+                        && keep(a)
+                })
+                .collect();
+        if !v.is_empty() {
+            v.sort_by_key(rank);
+            return v;
+        }
+    }
+    Vec::new()
 }
 
-/// Every adapter that runs compute shaders, best first.
+/// Every adapter that runs compute shaders, best first. GL adapters are probed only when no
+/// Vulkan, Metal or Dx12 adapter runs compute, or when `WGPU_BACKEND` asks for GL.
 pub fn adapters() -> Vec<AdapterSummary> {
-    compute_adapters().iter().map(AdapterSummary::of).collect()
+    compute_adapters(|_| true)
+        .iter()
+        .map(AdapterSummary::of)
+        .collect()
 }
 
 /// An open device for compute; clones share the device.
@@ -99,19 +120,20 @@ impl Gpu {
     /// Opens the best adapter; with `allow_software` false, software adapters are skipped.
     /// Errors when none is usable.
     pub fn open(allow_software: bool) -> Result<Self> {
-        let list = compute_adapters();
-        let adapter = list
-            .into_iter()
-            .find(|a| allow_software || a.get_info().device_type != wgpu::DeviceType::Cpu)
-            .ok_or_else(|| {
-                Error::Gpu(if allow_software {
-                    "no GPU adapter: wgpu found no driver that runs compute shaders (on Linux, \
+        let adapter = compute_adapters(|a| {
+            allow_software || a.get_info().device_type != wgpu::DeviceType::Cpu
+        })
+        .into_iter()
+        .next()
+        .ok_or_else(|| {
+            Error::Gpu(if allow_software {
+                "no GPU adapter: wgpu found no driver that runs compute shaders (on Linux, \
                      install a Vulkan driver, e.g. mesa-vulkan-drivers)"
-                        .into()
-                } else {
-                    "no hardware GPU adapter (software adapters are skipped)".into()
-                })
-            })?;
+                    .into()
+            } else {
+                "no hardware GPU adapter (software adapters are skipped)".into()
+            })
+        })?;
         let summary = AdapterSummary::of(&adapter);
         let mut features = wgpu::Features::empty();
         if summary.shader_f64 {

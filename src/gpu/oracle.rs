@@ -42,6 +42,9 @@ pub const SCAN_WGSL: &str = include_str!("../../shaders/scan.wgsl");
 /// 2^d words); above it the CPU generator runs.
 pub const MAX_GPU_SCAN_DIM: usize = 8;
 
+/// Consecutive cubes per invocation of the scan shader: they mostly lie in one grid row and
+/// share its corner rows, which are looked up once.
+const SCAN_RUN: usize = 8;
 /// Safety factor of the error bound, and the largest trusted relative bound, as on the CPU.
 const BOUND_FACTOR: f64 = 16.0;
 const MAX_RELATIVE_BOUND: f64 = 0.125;
@@ -51,6 +54,16 @@ const WORKGROUP: u32 = 64;
 const PIPELINE_CHUNK: usize = 1 << 17;
 /// Workgroups per dispatch row (the limit per dimension).
 const MAX_GROUPS: u32 = 65_535;
+
+/// The shaders, each with its own buffer pool: the stages of one oracle may run at once
+/// (the exhaustive scan generates batch n + 1 while batch n is decided).
+#[derive(Clone, Copy)]
+enum Stage {
+    Solve,
+    Scan,
+    Eval,
+}
+const STAGES: usize = 3;
 
 /// Shader verdicts.
 const CROSSED: u32 = 0;
@@ -111,7 +124,8 @@ pub fn scan_shader(d: usize, k: usize) -> Result<String> {
     let src = format!(
         "const D: u32 = {d}u;\nconst K: u32 = {k}u;\nconst KP1: u32 = {kp1}u;\n\
          const CORNERS: u32 = {corners}u;\nconst HALF: u32 = {half}u;\n\
-         const MASK: u32 = {mask}u;\nconst BASE: u32 = {base}u;\n{SCAN_WGSL}",
+         const MASK: u32 = {mask}u;\nconst BASE: u32 = {base}u;\nconst RUN: u32 = {SCAN_RUN}u;\n\
+         {SCAN_WGSL}",
         kp1 = k + 1,
         corners = 1u32 << d,
         half = 1u32 << (d - 1),
@@ -146,8 +160,8 @@ pub struct GpuOracle<'f> {
     readback_ns: AtomicU64,
     /// Split each round trip into timed, synchronous steps (for benchmarks).
     phased: AtomicBool,
-    /// Buffers kept across calls, by role; they grow when a batch needs more.
-    buffers: Mutex<Vec<Option<wgpu::Buffer>>>,
+    /// Buffers kept across calls, per stage and role; they grow when a batch needs more.
+    buffers: Mutex<[Vec<Option<wgpu::Buffer>>; STAGES]>,
 }
 
 impl<'f> GpuOracle<'f> {
@@ -189,7 +203,7 @@ impl<'f> GpuOracle<'f> {
             compute_ns: AtomicU64::new(0),
             readback_ns: AtomicU64::new(0),
             phased: AtomicBool::new(false),
-            buffers: Mutex::new(Vec::new()),
+            buffers: Mutex::new(Default::default()),
         })
     }
 
@@ -260,61 +274,54 @@ impl<'f> GpuOracle<'f> {
     /// Uploads `input`, runs `pipeline` over `count` items with `input` bound at 0 and
     /// outputs of the given byte sizes at 1.. (zeroed first when `zeroed`), and starts
     /// copying the outputs back; the device works while the caller does other things, until
-    /// [`GpuOracle::finish`].
+    /// [`GpuOracle::finish`]. The buffers come from `stage`'s pool and go back at the finish.
     fn submit(
         &self,
+        stage: Stage,
         pipeline: &wgpu::ComputePipeline,
         input: &[u8],
         count: usize,
         outputs: &[usize],
         zeroed: bool,
-    ) -> Result<Pending<'_>> {
+    ) -> Result<Pending> {
         let phased = self.phased.load(Ordering::Relaxed);
-        let mut pool = self
-            .buffers
-            .lock()
-            .map_err(|_| Error::Gpu("a previous GPU call panicked".into()))?;
         let started = Instant::now();
-        let dev = &self.gpu.device;
         let storage = wgpu::BufferUsages::STORAGE;
-        let in_size = (input.len().max(16) as u64).next_multiple_of(4);
-        let inbuf = reuse(
-            dev,
-            &mut pool,
-            0,
-            in_size,
-            storage | wgpu::BufferUsages::COPY_DST,
-        );
+        let sizes: Vec<u64> = outputs
+            .iter()
+            .map(|&want| (want.max(4) as u64).next_multiple_of(4))
+            .collect();
+        // Slots: 0 input, 1 parameters, then output i at 2 + 2i and its staging copy next.
+        let mut wanted = vec![
+            (
+                (input.len().max(16) as u64).next_multiple_of(4),
+                storage | wgpu::BufferUsages::COPY_DST,
+            ),
+            (
+                16,
+                wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            ),
+        ];
+        for &size in &sizes {
+            wanted.push((
+                size,
+                storage | wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST,
+            ));
+            wanted.push((
+                size,
+                wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+            ));
+        }
+        let bufs = self.check_out(stage, &wanted)?;
+        let (inbuf, ubuf) = (&bufs[0], &bufs[1]);
         if !input.is_empty() {
-            self.gpu.queue.write_buffer(&inbuf, 0, input);
+            self.gpu.queue.write_buffer(inbuf, 0, input);
         }
         if phased {
-            self.gpu.queue.submit([]);
-            self.wait()?;
+            let index = self.gpu.queue.submit([]);
+            self.wait(Some(index))?;
             add_time(&self.upload_ns, started);
         }
-        let outs: Vec<(wgpu::Buffer, wgpu::Buffer, u64, usize)> = outputs
-            .iter()
-            .enumerate()
-            .map(|(i, &want)| {
-                let size = (want.max(4) as u64).next_multiple_of(4);
-                let out = reuse(
-                    dev,
-                    &mut pool,
-                    2 + 2 * i,
-                    size,
-                    storage | wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST,
-                );
-                let staging = reuse(
-                    dev,
-                    &mut pool,
-                    3 + 2 * i,
-                    size,
-                    wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
-                );
-                (out, staging, size, want)
-            })
-            .collect();
         let groups = (count as u32).div_ceil(WORKGROUP).max(1);
         let (gx, gy) = if groups > MAX_GROUPS {
             (MAX_GROUPS, groups.div_ceil(MAX_GROUPS))
@@ -322,22 +329,16 @@ impl<'f> GpuOracle<'f> {
             (groups, 1)
         };
         let params: [u32; 4] = [count as u32, gx * WORKGROUP, 0, 0];
-        let ubuf = reuse(
-            dev,
-            &mut pool,
-            1,
-            16,
-            wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
-        );
         self.gpu
             .queue
-            .write_buffer(&ubuf, 0, bytemuck::cast_slice(&params));
+            .write_buffer(ubuf, 0, bytemuck::cast_slice(&params));
+        let outs: Vec<&wgpu::Buffer> = bufs[2..].iter().step_by(2).collect();
         let layout = pipeline.get_bind_group_layout(0);
         let mut entries = vec![wgpu::BindGroupEntry {
             binding: 0,
             resource: inbuf.as_entire_binding(),
         }];
-        for (i, (out, _, _, _)) in outs.iter().enumerate() {
+        for (i, out) in outs.iter().enumerate() {
             entries.push(wgpu::BindGroupEntry {
                 binding: i as u32 + 1,
                 resource: out.as_entire_binding(),
@@ -347,6 +348,7 @@ impl<'f> GpuOracle<'f> {
             binding: outs.len() as u32 + 1,
             resource: ubuf.as_entire_binding(),
         });
+        let dev = &self.gpu.device;
         let bind = dev.create_bind_group(&wgpu::BindGroupDescriptor {
             label: None,
             layout: &layout,
@@ -354,7 +356,7 @@ impl<'f> GpuOracle<'f> {
         });
         let mut enc = dev.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: None });
         if zeroed {
-            for (out, _, _, _) in &outs {
+            for out in &outs {
                 enc.clear_buffer(out, 0, None);
             }
         }
@@ -369,25 +371,25 @@ impl<'f> GpuOracle<'f> {
         }
         if phased {
             let t = Instant::now();
-            self.gpu.queue.submit([enc.finish()]);
-            self.wait()?;
+            let index = self.gpu.queue.submit([enc.finish()]);
+            self.wait(Some(index))?;
             add_time(&self.compute_ns, t);
             enc = dev.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: None });
         }
-        for (out, staging, size, _) in &outs {
-            enc.copy_buffer_to_buffer(out, 0, staging, 0, *size);
+        for (pair, &size) in bufs[2..].chunks_exact(2).zip(&sizes) {
+            enc.copy_buffer_to_buffer(&pair[0], 0, &pair[1], 0, size);
         }
-        self.gpu.queue.submit([enc.finish()]);
-        let mut maps = Vec::with_capacity(outs.len());
-        for (_, staging, size, want) in outs {
+        let index = self.gpu.queue.submit([enc.finish()]);
+        let mut maps = Vec::with_capacity(outputs.len());
+        for ((pair, &size), &want) in bufs[2..].chunks_exact(2).zip(&sizes).zip(outputs) {
             let (tx, rx) = std::sync::mpsc::channel();
-            staging
+            pair[1]
                 .slice(..size)
                 .map_async(wgpu::MapMode::Read, move |r| {
                     let _ = tx.send(r);
                 });
             maps.push(Readback {
-                staging,
+                staging: pair[1].clone(),
                 size,
                 want,
                 mapped: rx,
@@ -395,16 +397,67 @@ impl<'f> GpuOracle<'f> {
         }
         add_time(&self.gpu_ns, started);
         Ok(Pending {
-            _pool: pool,
+            stage,
+            buffers: bufs,
+            index,
             maps,
             readback_from: Instant::now(),
         })
     }
 
+    /// Buffers of at least the wanted sizes, with the given uses, one per slot of `stage`'s
+    /// pool: the pooled one where it is large enough, else a new one. They are the caller's
+    /// until [`GpuOracle::check_in`], so concurrent calls never share a buffer in flight.
+    fn check_out(
+        &self,
+        stage: Stage,
+        wanted: &[(u64, wgpu::BufferUsages)],
+    ) -> Result<Vec<wgpu::Buffer>> {
+        let mut taken: Vec<Option<wgpu::Buffer>> = {
+            let mut pools = self.pools()?;
+            let pool = &mut pools[stage as usize];
+            pool.resize_with(pool.len().max(wanted.len()), || None);
+            pool[..wanted.len()].iter_mut().map(Option::take).collect()
+        };
+        Ok(wanted
+            .iter()
+            .zip(taken.iter_mut())
+            .map(|(&(size, usage), old)| match old.take() {
+                Some(b) if b.size() >= size => b,
+                _ => self.gpu.device.create_buffer(&wgpu::BufferDescriptor {
+                    label: Some("isomesh"),
+                    size,
+                    usage,
+                    mapped_at_creation: false,
+                }),
+            })
+            .collect())
+    }
+
+    /// Returns buffers from [`GpuOracle::check_out`] to `stage`'s pool, keeping the larger
+    /// buffer of a slot that another call filled meanwhile.
+    fn check_in(&self, stage: Stage, buffers: Vec<wgpu::Buffer>) -> Result<()> {
+        let mut pools = self.pools()?;
+        let pool = &mut pools[stage as usize];
+        pool.resize_with(pool.len().max(buffers.len()), || None);
+        for (slot, b) in pool.iter_mut().zip(buffers) {
+            if slot.as_ref().is_none_or(|old| old.size() < b.size()) {
+                *slot = Some(b);
+            }
+        }
+        Ok(())
+    }
+
+    fn pools(&self) -> Result<MutexGuard<'_, [Vec<Option<wgpu::Buffer>>; STAGES]>> {
+        self.buffers
+            .lock()
+            .map_err(|_| Error::Gpu("a previous GPU call panicked".into()))
+    }
+
     /// Waits for a submitted round trip and returns its outputs' bytes.
-    fn finish(&self, pending: Pending<'_>) -> Result<Vec<Vec<u8>>> {
+    fn finish(&self, pending: Pending) -> Result<Vec<Vec<u8>>> {
         let started = Instant::now();
-        self.wait()?;
+        self.wait(Some(pending.index))?;
         let mut results = Vec::with_capacity(pending.maps.len());
         for Readback {
             staging,
@@ -425,6 +478,7 @@ impl<'f> GpuOracle<'f> {
             drop(view);
             staging.unmap();
         }
+        self.check_in(pending.stage, pending.buffers)?;
         add_time(&self.gpu_ns, started);
         if self.phased.load(Ordering::Relaxed) {
             add_time(&self.readback_ns, pending.readback_from);
@@ -432,11 +486,14 @@ impl<'f> GpuOracle<'f> {
         Ok(results)
     }
 
-    /// Blocks until the device has done everything submitted.
-    fn wait(&self) -> Result<()> {
+    /// Blocks until the device has done the submission `index` (None: everything submitted).
+    fn wait(&self, index: Option<wgpu::SubmissionIndex>) -> Result<()> {
         self.gpu
             .device
-            .poll(wgpu::PollType::wait_indefinitely())
+            .poll(wgpu::PollType::Wait {
+                submission_index: index,
+                timeout: None,
+            })
             .map(|_| ())
             .map_err(|e| Error::Gpu(format!("waiting for the device: {e}")))
     }
@@ -469,11 +526,12 @@ impl<'f> GpuOracle<'f> {
     }
 }
 
-/// A round trip on its way, from [`GpuOracle::submit`] to [`GpuOracle::finish`].
-/// It holds the buffer pool until it is finished, so that calls from several threads never
-/// share buffers in flight.
-struct Pending<'a> {
-    _pool: MutexGuard<'a, Vec<Option<wgpu::Buffer>>>,
+/// A round trip on its way, from [`GpuOracle::submit`] to [`GpuOracle::finish`], with the
+/// buffers it checked out of its stage's pool.
+struct Pending {
+    stage: Stage,
+    buffers: Vec<wgpu::Buffer>,
+    index: wgpu::SubmissionIndex,
     maps: Vec<Readback>,
     readback_from: Instant,
 }
@@ -489,33 +547,6 @@ struct Readback {
 
 fn add_time(counter: &AtomicU64, since: Instant) {
     counter.fetch_add(since.elapsed().as_nanos() as u64, Ordering::Relaxed);
-}
-
-/// The pooled buffer in `slot`, replaced by a larger one when it holds fewer than `size`
-/// bytes.
-fn reuse(
-    dev: &wgpu::Device,
-    pool: &mut Vec<Option<wgpu::Buffer>>,
-    slot: usize,
-    size: u64,
-    usage: wgpu::BufferUsages,
-) -> wgpu::Buffer {
-    if pool.len() <= slot {
-        pool.resize(slot + 1, None);
-    }
-    match &pool[slot] {
-        Some(b) if b.size() >= size => b.clone(),
-        _ => {
-            let b = dev.create_buffer(&wgpu::BufferDescriptor {
-                label: Some("isomesh"),
-                size,
-                usage,
-                mapped_at_creation: false,
-            });
-            pool[slot] = Some(b.clone());
-            b
-        }
-    }
 }
 
 fn pipeline(gpu: &Gpu, src: &str, label: &str) -> Result<wgpu::ComputePipeline> {
@@ -552,6 +583,7 @@ impl GpuOracle<'_> {
         for part in packed.chunks(chunk * per) {
             let c = part.len() / per;
             let pending = self.submit(
+                Stage::Solve,
                 &self.solve,
                 &self.encode_reals(part),
                 c,
@@ -620,6 +652,7 @@ impl GpuOracle<'_> {
                 .chain(part.iter().map(|&u| u as f64))
                 .collect();
             let pending = self.submit(
+                Stage::Eval,
                 eval,
                 &self.encode_reals(&input),
                 count,
@@ -680,12 +713,18 @@ fn scan_window(grid: &ScanGrid, cubes: &Range<usize>, max_bytes: u64) -> Option<
     let end = rows.partition_point(|r| r.id <= last_id);
     let hi = rows.get(end).map_or(grid.len(), |r| r.offset);
     let count = end - first;
-    let words = 4 + (d - 1) + 5 * count + (hi - lo);
+    let words = 5 + (d - 1) + 5 * count + (hi - lo);
     if last_id - id0 > u32::MAX as usize || (words as u64) * 4 > max_bytes {
         return None;
     }
     let mut input = Vec::with_capacity(words);
-    input.extend([(cubes.start - lo) as u32, count as u32, 0, 0]);
+    input.extend([
+        (cubes.start - lo) as u32,
+        count as u32,
+        0,
+        0,
+        cubes.len() as u32,
+    ]);
     input.extend((1..d).map(|j| grid.stride(j) as u32));
     for r in &rows[first..end] {
         input.extend([
@@ -741,7 +780,7 @@ impl GpuOracle<'_> {
                 Some(f) => words.extend(f),
                 None if range.len() == 1 => {
                     let mut one = Candidates::default();
-                    scan::cube_candidates(grid, range.start, &mut Vec::new(), &mut one);
+                    scan::cube_candidates(grid, range.start, &mut Default::default(), &mut one);
                     for (r, c) in one.rows.chunks(k + 1).zip(one.chains.chunks(k)) {
                         words.extend_from_slice(r);
                         words.extend_from_slice(c);
@@ -775,9 +814,10 @@ impl GpuOracle<'_> {
         loop {
             window.input[2] = cap as u32;
             let pending = self.submit(
+                Stage::Scan,
                 pipeline,
                 bytemuck::cast_slice(&window.input),
-                cubes,
+                cubes.div_ceil(SCAN_RUN),
                 &[4, cap * record * 4],
                 true,
             )?;
@@ -871,7 +911,14 @@ impl Oracle for GpuOracle<'_> {
             let mut pending = if sent.is_empty() {
                 None
             } else {
-                Some(self.submit(&self.solve, &bytes, sent.len(), &outputs, false)?)
+                Some(self.submit(
+                    Stage::Solve,
+                    &self.solve,
+                    &bytes,
+                    sent.len(),
+                    &outputs,
+                    false,
+                )?)
             };
             let mut early = None;
             if self.phased.load(Ordering::Relaxed) {

@@ -11,7 +11,7 @@
 
 use rayon::prelude::*;
 
-use super::grid;
+use super::grid::{self, ScanGrid};
 use super::table::{Key, Table};
 use super::{TraceContext, TraceStats};
 use crate::cpu::decide::Status;
@@ -31,73 +31,39 @@ pub(crate) fn scan<const W: usize>(
     ctx: &TraceContext,
     bbox: &[[f64; 2]],
 ) -> Result<(Table<W>, TraceStats)> {
-    let (d, k) = (ctx.d, ctx.k);
+    let k = ctx.k;
     let grid = grid::build(ctx, bbox)?;
     let mut stats = TraceStats {
         vertices: grid.len() as u64,
         ..TraceStats::default()
     };
-    let codec = &ctx.codec;
-    let values = grid.values();
     let mut found: Vec<Key<W>> = Vec::new();
-    let (mut start, mut batch) = (0, BATCH_RANGE.0);
-    while start < grid.len() {
+    // The candidates of the next batch are generated while this one is decided: on a GPU,
+    // the scan shader runs while the host settles the solve shader's verdicts.
+    let mut cubes = 0..BATCH_RANGE.0.min(grid.len());
+    let mut batch = if cubes.is_empty() {
+        None
+    } else {
+        Some(ctx.oracle.scan_candidates(&grid, cubes.clone())?)
+    };
+    while let Some(cands) = batch.take() {
         cancelled(ctx)?;
-        let cubes = start..(start + batch).min(grid.len());
-        start = cubes.end;
-        let Candidates { rows, chains } = ctx.oracle.scan_candidates(&grid, cubes.clone())?;
-        let m = rows.len() / (k + 1);
         // The next batch: about TARGET_CANDIDATES at this density (the same on every backend).
-        batch = (cubes.len() as u128 * TARGET_CANDIDATES as u128 / m.max(1) as u128)
+        let m = cands.rows.len() / (k + 1);
+        let size = (cubes.len() as u128 * TARGET_CANDIDATES as u128 / m.max(1) as u128)
             .clamp(BATCH_RANGE.0 as u128, BATCH_RANGE.1 as u128) as usize;
-        let mut status = vec![Status::Outside; m];
-        let mut lambda = vec![0.0; m * (k + 1)];
-        stats.exact_decisions += ctx.oracle.decide(values, &rows, &mut status, &mut lambda)?;
-        stats.oracle_calls += m as u64;
-        for s in &status {
-            match s {
-                Status::Degenerate => stats.degenerate += 1,
-                Status::NonFinite => stats.non_finite += 1,
-                _ => {}
-            }
-        }
-        let hits: Vec<Result<Option<Key<W>>>> = (0..m)
-            .into_par_iter()
-            .filter(|&i| status[i].crossed())
-            .map(|i| {
-                let row = &rows[i * (k + 1)..(i + 1) * (k + 1)];
-                let chain = &chains[i * k..(i + 1) * k];
-                let lam = &lambda[i * (k + 1)..(i + 1) * (k + 1)];
-                let mut point = [0.0; MAX_DIM];
-                let mut v = [0i32; MAX_DIM];
-                ctx.tri.barycentric_point(
-                    lam,
-                    |j, out| grid.coords(row[j] as usize, out),
-                    &mut point[..d],
-                );
-                if !ctx.domain.contains(&point[..d]) {
-                    return Ok(None);
-                }
-                grid.coords(row[0] as usize, &mut v[..d]);
-                let full = (1u64 << d) - 1;
-                let mut parts = [0u64; MAX_DIM + 1];
-                let mut prev = 0;
-                for (j, &s) in chain.iter().enumerate() {
-                    parts[j] = s as u64 & !prev;
-                    prev = s as u64;
-                }
-                parts[k] = (full & !prev) | (1 << d);
-                let simplex = Simplex::from_masks(&v[..d], &parts[..=k])?;
-                let mut key = [0u64; W];
-                codec.encode(&simplex, &mut key)?;
-                Ok(Some(key))
-            })
-            .collect();
-        for h in hits {
-            if let Some(key) = h? {
-                found.push(key);
-            }
-        }
+        cubes = cubes.end..(cubes.end + size).min(grid.len());
+        let next = cubes.clone();
+        let grid = &grid;
+        let (ahead, decided) = std::thread::scope(|s| {
+            let ahead =
+                (!next.is_empty()).then(|| s.spawn(|| ctx.oracle.scan_candidates(grid, next)));
+            let decided = decide_batch(ctx, grid, &cands, &mut stats, &mut found);
+            let ahead = ahead.map(|h| h.join().unwrap_or_else(|p| std::panic::resume_unwind(p)));
+            (ahead, decided)
+        });
+        decided?;
+        batch = ahead.transpose()?;
     }
     found.par_sort_unstable();
     let mut table = Table::new();
@@ -105,6 +71,71 @@ pub(crate) fn scan<const W: usize>(
         table.insert(key)?;
     }
     Ok((table, stats))
+}
+
+/// Decides the candidates `cands` of the grid and appends the keys of the crossed ones whose
+/// point lies in the domain to `found`.
+fn decide_batch<const W: usize>(
+    ctx: &TraceContext,
+    grid: &ScanGrid,
+    cands: &Candidates,
+    stats: &mut TraceStats,
+    found: &mut Vec<Key<W>>,
+) -> Result<()> {
+    let (d, k) = (ctx.d, ctx.k);
+    let Candidates { rows, chains } = cands;
+    let m = rows.len() / (k + 1);
+    let mut status = vec![Status::Outside; m];
+    let mut lambda = vec![0.0; m * (k + 1)];
+    stats.exact_decisions += ctx
+        .oracle
+        .decide(grid.values(), rows, &mut status, &mut lambda)?;
+    stats.oracle_calls += m as u64;
+    for s in &status {
+        match s {
+            Status::Degenerate => stats.degenerate += 1,
+            Status::NonFinite => stats.non_finite += 1,
+            _ => {}
+        }
+    }
+    let hits: Vec<Result<Option<Key<W>>>> = (0..m)
+        .into_par_iter()
+        .filter(|&i| status[i].crossed())
+        .map(|i| {
+            let row = &rows[i * (k + 1)..(i + 1) * (k + 1)];
+            let chain = &chains[i * k..(i + 1) * k];
+            let lam = &lambda[i * (k + 1)..(i + 1) * (k + 1)];
+            let mut point = [0.0; MAX_DIM];
+            let mut v = [0i32; MAX_DIM];
+            ctx.tri.barycentric_point(
+                lam,
+                |j, out| grid.coords(row[j] as usize, out),
+                &mut point[..d],
+            );
+            if !ctx.domain.contains(&point[..d]) {
+                return Ok(None);
+            }
+            grid.coords(row[0] as usize, &mut v[..d]);
+            let full = (1u64 << d) - 1;
+            let mut parts = [0u64; MAX_DIM + 1];
+            let mut prev = 0;
+            for (j, &s) in chain.iter().enumerate() {
+                parts[j] = s as u64 & !prev;
+                prev = s as u64;
+            }
+            parts[k] = (full & !prev) | (1 << d);
+            let simplex = Simplex::from_masks(&v[..d], &parts[..=k])?;
+            let mut key = [0u64; W];
+            ctx.codec.encode(&simplex, &mut key)?;
+            Ok(Some(key))
+        })
+        .collect();
+    for h in hits {
+        if let Some(key) = h? {
+            found.push(key);
+        }
+    }
+    Ok(())
 }
 
 pub(super) fn cancelled(ctx: &TraceContext) -> Result<()> {
