@@ -445,6 +445,18 @@ offset_seed = 1
         bad("ambient_dim = 99\nequations = [\"x1\"]\n"),
         Err(Error::Dimension(99))
     ));
+    // Without ambient_dim, the variables give d; with neither, a clear error.
+    let named =
+        bad("variables = [\"u\", \"v\", \"t\"]\nequations = [\"u^2 + v^2 - t\"]\n").unwrap();
+    assert_eq!((named.dim(), named.system.codim()), (3, 1));
+    assert!(matches!(
+        bad("equations = [\"x^2 + y^2 - 1\"]\n"),
+        Err(Error::Spec(m)) if m.contains("ambient_dim")
+    ));
+    assert!(matches!(
+        bad("ambient_dim = 2\nvariables = [\"u\"]\nequations = [\"u\"]\n"),
+        Err(Error::DimensionMismatch(_))
+    ));
     // A seed from which Newton cannot reach M: x^2 + 1 = 0 has no real zero.
     assert!(matches!(
         bad("ambient_dim = 2\nequations = [\"x^2 + 1 + 0*y\"]\nseeds = [[0.5, 0.0]]\n"),

@@ -3,10 +3,11 @@
 
 use std::collections::{HashMap, HashSet};
 
+use isomesh::cpu::decide::Status;
 use isomesh::cpu::scan::{Candidates, BASE};
 use isomesh::expr::{preset, EquationSystem, ImplicitFunction, Problem};
 use isomesh::trace::{
-    exhaustive, scan_grid, trace, CpuOracle, Sample, ScanGrid, StopReason, TraceOptions,
+    exhaustive, scan_grid, trace, CpuOracle, Oracle, Sample, ScanGrid, StopReason, TraceOptions,
 };
 use isomesh::triangulation::{Simplex, Triangulation};
 use isomesh::Error;
@@ -405,6 +406,105 @@ fn memory_limit_and_cancel_stop_cleanly_keeping_the_sample() {
     )
     .unwrap();
     assert_eq!(s.stats.stopped, Some(StopReason::Interrupted));
+}
+
+#[test]
+fn concurrent_exhaustive_scans_share_the_pool_without_deadlock() {
+    // Each scan overlaps generating one batch with deciding the last, inside the rayon pool:
+    // here more scans at once than the pool has threads, and one scan on a pool of one
+    // thread. A scan that blocked a pool thread while it waited would hang; the watchdog
+    // fails the test.
+    let (tx, rx) = std::sync::mpsc::channel();
+    std::thread::spawn(move || {
+        let p = problem("sphere", &[], 0.03);
+        let tri = p.triangulation.build(3).unwrap();
+        let opts = TraceOptions {
+            bbox: Some(vec![[-1.3, 1.3]; 3]),
+            ..TraceOptions::default()
+        };
+        let run = || exhaustive(&p.system, &tri, &CpuOracle::new(&p.system), &opts).unwrap();
+        let alone = rayon::ThreadPoolBuilder::new()
+            .num_threads(1)
+            .build()
+            .unwrap()
+            .install(run);
+        let many: Vec<Sample> = std::thread::scope(|s| {
+            let runs: Vec<_> = (0..=rayon::current_num_threads())
+                .map(|_| s.spawn(run))
+                .collect();
+            runs.into_iter().map(|r| r.join().unwrap()).collect()
+        });
+        let same = many.iter().all(|m| m.sorted_keys() == alone.sorted_keys());
+        tx.send((same, alone.len())).unwrap();
+    });
+    let (same, n) = rx
+        .recv_timeout(std::time::Duration::from_secs(300))
+        .expect("the scans did not finish: pool threads wait on each other");
+    assert!(same && n > 1000, "the scans differ ({n} simplices)");
+}
+
+/// The CPU oracle, raising a cancel flag once it has decided a batch with crossings (a Ctrl-C
+/// mid-scan).
+struct CancelAfterCrossings<'a> {
+    inner: CpuOracle<'a>,
+    cancel: std::sync::Arc<std::sync::atomic::AtomicBool>,
+}
+
+impl Oracle for CancelAfterCrossings<'_> {
+    fn name(&self) -> String {
+        self.inner.name()
+    }
+    fn eval_vertices(
+        &self,
+        tri: &Triangulation,
+        lattice: &[i32],
+        values: &mut [f64],
+    ) -> isomesh::Result<()> {
+        self.inner.eval_vertices(tri, lattice, values)
+    }
+    fn decide(
+        &self,
+        values: &[f64],
+        simplices: &[u32],
+        status: &mut [Status],
+        lambda: &mut [f64],
+    ) -> isomesh::Result<u64> {
+        let exact = self.inner.decide(values, simplices, status, lambda)?;
+        if status.iter().any(|s| s.crossed()) {
+            self.cancel
+                .store(true, std::sync::atomic::Ordering::Relaxed);
+        }
+        Ok(exact)
+    }
+}
+
+#[test]
+fn an_interrupted_exhaustive_scan_keeps_what_it_found() {
+    // About five million lattice vertices: several batches of cubes.
+    let p = problem("sphere", &[], 0.02);
+    let tri = p.triangulation.build(3).unwrap();
+    let mut opts = TraceOptions {
+        bbox: Some(vec![[-1.3, 1.3]; 3]),
+        ..TraceOptions::default()
+    };
+    let full = exhaustive(&p.system, &tri, &CpuOracle::new(&p.system), &opts).unwrap();
+    let cancel = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+    opts.cancel = Some(cancel.clone());
+    let oracle = CancelAfterCrossings {
+        inner: CpuOracle::new(&p.system),
+        cancel,
+    };
+    let part = exhaustive(&p.system, &tri, &oracle, &opts).unwrap();
+    assert_eq!(part.stats.stopped, Some(StopReason::Interrupted));
+    assert!(full.stats.stopped.is_none());
+    assert!(
+        !part.is_empty() && part.len() < full.len(),
+        "{} of {}",
+        part.len(),
+        full.len()
+    );
+    let all: HashSet<&[u64]> = full.sorted_keys().into_iter().collect();
+    assert!(part.sorted_keys().iter().all(|k| all.contains(k)));
 }
 
 #[test]

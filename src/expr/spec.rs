@@ -13,7 +13,9 @@ use crate::triangulation::{check_dim, Offset, Triangulation, TriangulationKind};
 #[derive(Clone, Debug, Default, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct Spec {
-    /// d.
+    /// d; a spec file may leave it out when `variables` names the coordinates (it reads
+    /// as [`INFER_DIM`]).
+    #[serde(default = "infer_dim")]
     pub ambient_dim: usize,
     /// Variable names (default x1..xd, plus x y z w when d <= 4).
     pub variables: Option<Vec<String>>,
@@ -33,6 +35,13 @@ pub struct Spec {
     pub bbox: Option<Vec<[f64; 2]>>,
     /// Triangulation settings.
     pub triangulation: Option<TriangulationSpec>,
+}
+
+/// `ambient_dim` of a spec that leaves it out: the count of `variables`.
+pub const INFER_DIM: usize = usize::MAX;
+
+fn infer_dim() -> usize {
+    INFER_DIM
 }
 
 /// The `[triangulation]` table.
@@ -169,7 +178,16 @@ impl Spec {
 
     /// Validates everything and compiles the equations; seeds are Newton-projected.
     pub fn resolve(&self, name: &str) -> Result<Problem> {
-        let d = self.ambient_dim;
+        let d = match (self.ambient_dim, &self.variables) {
+            (INFER_DIM, Some(names)) => names.len(),
+            (INFER_DIM, None) => {
+                return Err(Error::Spec(
+                    "ambient_dim is missing: give it, or name the coordinates in `variables`"
+                        .into(),
+                ))
+            }
+            (d, _) => d,
+        };
         check_dim(d)?;
         let mut scope = match &self.variables {
             Some(names) => {

@@ -7,7 +7,8 @@
 //! is re-decided on the CPU by [`Decider`](crate::cpu::decide::Decider), exactly where needed.
 //!
 //! A batch goes through in chunks, pipelined: while the device solves one chunk, the host
-//! packs the next and settles the previous one.
+//! packs the next and settles the previous one. Each round trip checks its buffers out of
+//! its shader's pool, so several threads may use one oracle at once.
 //!
 //! Vertex values are computed on the CPU (each lattice vertex once per trace): a GPU may
 //! contract a * b + c into a fused multiply-add, which changes f by an ulp, and S is defined
@@ -76,7 +77,8 @@ pub struct GpuStats {
     pub solved: u64,
     /// Of those, decided again on the CPU.
     pub rechecked: u64,
-    /// Seconds the host spent submitting to and waiting on the device.
+    /// Seconds the host spent submitting to and waiting on the device, summed over the
+    /// threads that used the oracle (the exhaustive scan's two stages overlap).
     pub gpu_s: f64,
     /// Seconds of host work around the shader: the cheap filters, packing rows, and
     /// re-deciding uncertain simplices on the CPU (overlapped with the device's work unless

@@ -13,7 +13,7 @@ use rayon::prelude::*;
 
 use super::grid::{self, ScanGrid};
 use super::table::{Key, Table};
-use super::{TraceContext, TraceStats};
+use super::{StopReason, TraceContext, TraceStats};
 use crate::cpu::decide::Status;
 use crate::cpu::scan::Candidates;
 use crate::error::{Error, Result};
@@ -26,7 +26,8 @@ const TARGET_CANDIDATES: usize = 1 << 20;
 /// Fewest and most vertices (cube bases) per batch.
 const BATCH_RANGE: (usize, usize) = (1 << 12, 1 << 20);
 
-/// Scans the box; returns S (keys in sorted order, W words each) and counters.
+/// Scans the box; returns S (keys in sorted order, W words each) and counters. Interrupted
+/// (Ctrl-C) between batches, it returns what it found so far, with `stopped` set.
 pub(crate) fn scan<const W: usize>(
     ctx: &TraceContext,
     bbox: &[[f64; 2]],
@@ -47,7 +48,11 @@ pub(crate) fn scan<const W: usize>(
         Some(ctx.oracle.scan_candidates(&grid, cubes.clone())?)
     };
     while let Some(cands) = batch.take() {
-        cancelled(ctx)?;
+        // Ctrl-C: what the batches so far found is kept.
+        if cancelled(ctx).is_err() {
+            stats.stopped = Some(StopReason::Interrupted);
+            break;
+        }
         // The next batch: about TARGET_CANDIDATES at this density (the same on every backend).
         let m = cands.rows.len() / (k + 1);
         let size = (cubes.len() as u128 * TARGET_CANDIDATES as u128 / m.max(1) as u128)
@@ -55,13 +60,13 @@ pub(crate) fn scan<const W: usize>(
         cubes = cubes.end..(cubes.end + size).min(grid.len());
         let next = cubes.clone();
         let grid = &grid;
-        let (ahead, decided) = std::thread::scope(|s| {
-            let ahead =
-                (!next.is_empty()).then(|| s.spawn(|| ctx.oracle.scan_candidates(grid, next)));
-            let decided = decide_batch(ctx, grid, &cands, &mut stats, &mut found);
-            let ahead = ahead.map(|h| h.join().unwrap_or_else(|p| std::panic::resume_unwind(p)));
-            (ahead, decided)
-        });
+        // rayon::join, not an OS thread: the scan may run inside a rayon pool, whose workers
+        // must keep taking work while they wait (a worker blocked on a thread join starves
+        // the pool). No lock is held across either side (see `GpuOracle`'s buffer pools).
+        let (ahead, decided) = rayon::join(
+            || (!next.is_empty()).then(|| ctx.oracle.scan_candidates(grid, next)),
+            || decide_batch(ctx, grid, &cands, &mut stats, &mut found),
+        );
         decided?;
         batch = ahead.transpose()?;
     }
