@@ -9,8 +9,8 @@
 // `const RUN: u32` (cubes per invocation).
 //
 // input, u32: first cube, row count, capacity (candidates), index of the first code, cube
-// count, then the row-id strides of axes 1..D-1, then the rows (id, start as i32 bits, len, offset, top axes),
-// then one code per vertex. Rows and offsets are relative to the window the host sent.
+// count, then the row-id strides of axes 1..D-1, then the rows (id, start as i32 bits, len,
+// offset, top axes), then one code per vertex. Rows and offsets are relative to the window the host sent.
 // found: the number of candidates (may exceed the capacity: the host then runs again).
 // out: per candidate, K + 1 vertex indices, then the K corner sets S_1 < .. < S_K.
 

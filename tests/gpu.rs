@@ -53,6 +53,20 @@ fn run(p: &Problem, oracle: &dyn Oracle) -> Sample {
     trace(&p.system, &tri, oracle, &opts).unwrap()
 }
 
+/// The cell complexes of two samples of `p` have the same cell counts and Betti numbers.
+fn assert_same_topology(
+    cpu: &Sample,
+    gpu: &Sample,
+    p: &Problem,
+    bbox: Option<&[[f64; 2]]>,
+    what: &str,
+) {
+    let tc = Complex::build(cpu, &p.system, bbox).unwrap().topology();
+    let tg = Complex::build(gpu, &p.system, bbox).unwrap().topology();
+    assert_eq!(tc.cells, tg.cells, "{what}");
+    assert_eq!(tc.betti_mod2, tg.betti_mod2, "{what}");
+}
+
 /// Random vertex values of n k-simplices, a third of them nearly degenerate (two vertices
 /// almost equal) and a third with tiny components, as row indices into the values.
 fn hard_batch(k: usize, count: usize, seed: u64) -> (Vec<f64>, Vec<u32>) {
@@ -172,14 +186,7 @@ fn gpu_traces_give_the_cpu_sample_and_topology() {
                 .flat_map(|i| cpu.rim_point(i).iter().zip(gpu.rim_point(i)))
                 .fold(0.0f64, |m, (a, b)| m.max((a - b).abs()));
             assert!(worst <= 1e-12, "{what}: rim points differ by {worst:e}");
-            let tc = Complex::build(&cpu, &p.system, p.bbox.as_deref())
-                .unwrap()
-                .topology();
-            let tg = Complex::build(&gpu, &p.system, p.bbox.as_deref())
-                .unwrap()
-                .topology();
-            assert_eq!(tc.cells, tg.cells, "{what}");
-            assert_eq!(tc.betti_mod2, tg.betti_mod2, "{what}");
+            assert_same_topology(&cpu, &gpu, &p, p.bbox.as_deref(), &what);
             assert!(oracle.stats().solved > 0, "{what}: the GPU did nothing");
         }
     }
@@ -436,14 +443,7 @@ fn gpu_exhaustive_scans_give_the_cpu_sample_and_topology() {
             assert_eq!(cpu.stats.oracle_calls, gpu.stats.oracle_calls, "{what}");
             assert_eq!(cpu.stats.components, gpu.stats.components, "{what}");
             assert!(cpu.points() == gpu.points(), "{what}: points differ");
-            let tc = Complex::build(&cpu, &p.system, Some(&bbox))
-                .unwrap()
-                .topology();
-            let tg = Complex::build(&gpu, &p.system, Some(&bbox))
-                .unwrap()
-                .topology();
-            assert_eq!(tc.cells, tg.cells, "{what}");
-            assert_eq!(tc.betti_mod2, tg.betti_mod2, "{what}");
+            assert_same_topology(&cpu, &gpu, &p, Some(&bbox), &what);
             assert!(oracle.stats().solved > 0, "{what}: the GPU did nothing");
         }
     }

@@ -97,9 +97,9 @@ impl CornerRows {
                     .filter(|&j| t >> (j - 1) & 1 == 1)
                     .map(|j| grid.stride(j))
                     .sum::<usize>();
-            match grid.find_row(id) {
-                Some(found) if t as u32 & top == 0 => self.rows.push(found),
-                _ => {
+            match (t as u32 & top == 0).then(|| grid.find_row(id)).flatten() {
+                Some(found) => self.rows.push(found),
+                None => {
                     self.rows.clear();
                     return;
                 }

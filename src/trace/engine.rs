@@ -3,7 +3,6 @@
 //! breadth-first loop over levels ([`super::level`] computes one level).
 
 use std::ops::Range;
-use std::sync::atomic::Ordering;
 
 use rayon::prelude::*;
 
@@ -63,11 +62,9 @@ impl<'a, const W: usize> Engine<'a, W> {
 
     /// Whether the trace must stop now (Ctrl-C, or the next step would pass the memory limit).
     pub(super) fn must_stop(&mut self, next_bytes: usize) -> bool {
-        if let Some(c) = self.ctx.cancel {
-            if c.load(Ordering::Relaxed) {
-                self.stats.stopped = Some(StopReason::Interrupted);
-                return true;
-            }
+        if self.ctx.interrupted() {
+            self.stats.stopped = Some(StopReason::Interrupted);
+            return true;
         }
         let need = (self.bytes() + next_bytes) as u64;
         if need > self.ctx.max_memory {

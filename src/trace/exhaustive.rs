@@ -49,7 +49,7 @@ pub(crate) fn scan<const W: usize>(
     };
     while let Some(cands) = batch.take() {
         // Ctrl-C: what the batches so far found is kept.
-        if cancelled(ctx).is_err() {
+        if ctx.interrupted() {
             stats.stopped = Some(StopReason::Interrupted);
             break;
         }
@@ -143,13 +143,12 @@ fn decide_batch<const W: usize>(
     Ok(())
 }
 
+/// An error when the cancel flag (Ctrl-C) is set: for steps that have nothing to keep.
 pub(super) fn cancelled(ctx: &TraceContext) -> Result<()> {
-    match ctx.cancel {
-        Some(c) if c.load(std::sync::atomic::Ordering::Relaxed) => {
-            Err(Error::Trace("interrupted".into()))
-        }
-        _ => Ok(()),
+    if ctx.interrupted() {
+        return Err(Error::Trace("interrupted".into()));
     }
+    Ok(())
 }
 
 /// Connected components of S, two k-simplices being adjacent when they are facets of one

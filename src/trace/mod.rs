@@ -333,6 +333,14 @@ pub(crate) struct TraceContext<'a> {
     pub scramble_pivots: bool,
 }
 
+impl TraceContext<'_> {
+    /// Whether the cancel flag (Ctrl-C) is set.
+    pub fn interrupted(&self) -> bool {
+        self.cancel
+            .is_some_and(|c| c.load(std::sync::atomic::Ordering::Relaxed))
+    }
+}
+
 /// Calls `$f::<W>($args)` with W the supported key width at least `$words`.
 macro_rules! with_width {
     ($words:expr, $f:ident ( $($arg:expr),* )) => {
