@@ -507,6 +507,109 @@ fn an_interrupted_exhaustive_scan_keeps_what_it_found() {
     assert!(part.sorted_keys().iter().all(|k| all.contains(k)));
 }
 
+/// The CPU oracle, asking for trace levels in slices of `slice` frontier simplices, as an
+/// oracle that decides on a device does.
+struct Sliced<'a> {
+    inner: CpuOracle<'a>,
+    slice: usize,
+}
+
+impl Oracle for Sliced<'_> {
+    fn name(&self) -> String {
+        self.inner.name()
+    }
+    fn eval_vertices(
+        &self,
+        tri: &Triangulation,
+        lattice: &[i32],
+        values: &mut [f64],
+    ) -> isomesh::Result<()> {
+        self.inner.eval_vertices(tri, lattice, values)
+    }
+    fn decide(
+        &self,
+        values: &[f64],
+        simplices: &[u32],
+        status: &mut [Status],
+        lambda: &mut [f64],
+    ) -> isomesh::Result<u64> {
+        self.inner.decide(values, simplices, status, lambda)
+    }
+    fn level_slice(&self) -> Option<usize> {
+        Some(self.slice)
+    }
+}
+
+/// Two samples are the same: keys in the same order, the same point bits, the same rim and
+/// the same counters.
+fn assert_same_sample(a: &Sample, b: &Sample, what: &str) {
+    assert_eq!(a.len(), b.len(), "{what}: sizes");
+    assert!(
+        (0..a.len()).all(|i| a.key(i) == b.key(i)),
+        "{what}: the keys differ"
+    );
+    let bits = |s: &Sample| -> Vec<u64> { s.points().iter().map(|x| x.to_bits()).collect() };
+    assert!(bits(a) == bits(b), "{what}: the points differ");
+    assert_eq!(a.rim_len(), b.rim_len(), "{what}: rims");
+    assert!(
+        (0..a.rim_len()).all(|i| a.rim_key(i) == b.rim_key(i) && a.rim_point(i) == b.rim_point(i)),
+        "{what}: the rims differ"
+    );
+    let counters = |s: &Sample| {
+        let t = &s.stats;
+        [
+            t.levels,
+            t.widest_level,
+            t.oracle_calls,
+            t.pivot_fallbacks,
+            t.exact_decisions,
+            t.degenerate,
+            t.non_finite,
+            t.vertices,
+            t.components as u64,
+            t.seed_points,
+        ]
+    };
+    assert_eq!(counters(a), counters(b), "{what}: counters");
+}
+
+#[test]
+fn levels_decided_in_slices_trace_exactly_as_one_batch() {
+    let mut problems: Vec<(Problem, Option<Vec<[f64; 2]>>)> = cases()
+        .into_iter()
+        .map(|(name, params, bbox, edges, _)| (problem(name, &params, edges[1]), Some(bbox)))
+        .collect();
+    let cosine = problem("complex-cosine", &[], 0.25);
+    let bbox = cosine.bbox.clone();
+    problems.push((cosine, bbox));
+    problems.push((problem("torus", &[], 0.05), None));
+    let mut sliced_levels = 0;
+    for (p, bbox) in &problems {
+        let tri = p.triangulation.build(p.dim()).unwrap();
+        let opts = TraceOptions {
+            seeds: p.seeds.clone(),
+            bbox: bbox.clone(),
+            ..TraceOptions::default()
+        };
+        let whole = trace(&p.system, &tri, &CpuOracle::new(&p.system), &opts).unwrap();
+        let widest = whole.stats.widest_level as usize;
+        for slice in [1, 7, widest / 3 + 1] {
+            let oracle = Sliced {
+                inner: CpuOracle::new(&p.system),
+                slice,
+            };
+            let sliced = trace(&p.system, &tri, &oracle, &opts).unwrap();
+            let what = format!("{} in R^{}, slices of {slice}", p.name, p.dim());
+            assert_same_sample(&whole, &sliced, &what);
+            sliced_levels += (widest > slice) as usize;
+        }
+    }
+    assert!(
+        sliced_levels > 20,
+        "only {sliced_levels} runs had a level in slices"
+    );
+}
+
 #[test]
 fn closures_trace_like_equations() {
     let p = problem("torus", &[], 0.1);

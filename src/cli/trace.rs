@@ -93,6 +93,11 @@ pub struct TraceArgs {
     /// on the CPU), or auto (f64 where the adapter has it) [default: auto].
     #[arg(long, value_enum)]
     pub precision: Option<PrecisionArg>,
+    /// GPU backend: frontier simplices per slice of a trace level; wider levels are decided
+    /// slice by slice, the next slice named on the CPU meanwhile (default 16384 on hardware
+    /// GPUs, 0 = whole levels on software adapters). The result does not depend on it.
+    #[arg(long)]
+    pub level_slice: Option<usize>,
     /// Worker threads (default: all cores).
     #[arg(long)]
     pub threads: Option<usize>,
@@ -323,6 +328,9 @@ fn run_in_pool(p: &Problem, args: &TraceArgs, threads: usize) -> Result<()> {
         Some(g) => Some(GpuOracle::new(g, sys, precision)?),
         None => None,
     };
+    if let (Some(o), Some(slice)) = (&gpu_oracle, args.level_slice) {
+        o.set_level_slice(slice);
+    }
     let oracle: &dyn Oracle = match &gpu_oracle {
         Some(o) => o,
         None => &cpu_oracle,
@@ -462,6 +470,7 @@ fn run_in_pool(p: &Problem, args: &TraceArgs, threads: usize) -> Result<()> {
             "peak_memory_bytes": peak,
             "bytes_per_simplex": if n > 0 { peak as f64 / n as f64 } else { 0.0 },
             "levels": st.levels,
+            "widest_level": st.widest_level,
             "oracle_calls": st.oracle_calls,
             "exact_decisions": st.exact_decisions,
             "pivot_fallbacks": st.pivot_fallbacks,

@@ -20,7 +20,7 @@
 
 use std::borrow::Cow;
 use std::ops::Range;
-use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering};
 use std::sync::{Mutex, MutexGuard, OnceLock};
 use std::time::Instant;
 
@@ -53,6 +53,9 @@ const MAX_RELATIVE_BOUND: f64 = 0.125;
 const WORKGROUP: u32 = 64;
 /// Simplices per pipelined chunk of a decision batch.
 const PIPELINE_CHUNK: usize = 1 << 17;
+/// Frontier simplices per slice of a trace level on a hardware GPU (2 to 4 candidates
+/// each): wider levels overlap naming on the CPU with deciding on the device.
+pub const LEVEL_SLICE: usize = 1 << 14;
 /// Workgroups per dispatch row (the limit per dimension).
 const MAX_GROUPS: u32 = 65_535;
 
@@ -153,6 +156,8 @@ pub struct GpuOracle<'f> {
     scan_density: AtomicU64,
     /// Most bytes per storage binding ([`GpuOracle::limit_binding`]).
     binding_limit: AtomicU64,
+    /// Frontier simplices per slice of a trace level ([`GpuOracle::set_level_slice`]).
+    level_slice: AtomicUsize,
     solved: AtomicU64,
     rechecked: AtomicU64,
     gpu_ns: AtomicU64,
@@ -187,6 +192,11 @@ impl<'f> GpuOracle<'f> {
         };
         let k = f.codim();
         let solve = pipeline(&gpu, &solve_shader(k, precision)?, "solve")?;
+        let level_slice = if gpu.adapter.is_software() {
+            0
+        } else {
+            LEVEL_SLICE
+        };
         Ok(GpuOracle {
             gpu,
             f,
@@ -197,6 +207,7 @@ impl<'f> GpuOracle<'f> {
             scan: OnceLock::new(),
             scan_density: AtomicU64::new(1 << 12),
             binding_limit: AtomicU64::new(1 << 30),
+            level_slice: AtomicUsize::new(level_slice),
             solved: AtomicU64::new(0),
             rechecked: AtomicU64::new(0),
             gpu_ns: AtomicU64::new(0),
@@ -259,6 +270,15 @@ impl<'f> GpuOracle<'f> {
     /// and for testing the splitting.
     pub fn limit_binding(&self, bytes: u64) {
         self.binding_limit.store(bytes.max(256), Ordering::Relaxed);
+    }
+
+    /// Frontier simplices per slice of a trace level: wider levels are decided slice by
+    /// slice, the next slice named on the CPU while the device decides one
+    /// ([`Oracle::level_slice`]); 0 decides every level as one batch. The default is
+    /// [`LEVEL_SLICE`] on hardware adapters and 0 on software ones (lavapipe), whose device
+    /// work runs on the same cores as the naming. Results are the same.
+    pub fn set_level_slice(&self, simplices: usize) {
+        self.level_slice.store(simplices, Ordering::Relaxed);
     }
 
     /// The bytes one storage binding may hold.
@@ -875,6 +895,10 @@ impl Oracle for GpuOracle<'_> {
     ) -> Result<()> {
         // On the CPU: see the module documentation.
         CpuOracle::new(self.f).eval_vertices(tri, lattice, values)
+    }
+
+    fn level_slice(&self) -> Option<usize> {
+        Some(self.level_slice.load(Ordering::Relaxed)).filter(|&s| s > 0)
     }
 
     fn scan_candidates(&self, grid: &ScanGrid, cubes: Range<usize>) -> Result<Candidates> {

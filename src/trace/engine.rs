@@ -93,6 +93,7 @@ impl<'a, const W: usize> Engine<'a, W> {
             };
             front = self.accept(found)?;
             self.stats.levels += 1;
+            self.stats.widest_level = self.stats.widest_level.max(front.range.len() as u64);
             if let Some(p) = self.ctx.progress {
                 p(&Progress {
                     simplices: self.s.len(),
@@ -167,23 +168,37 @@ impl<'a, const W: usize> Engine<'a, W> {
 
     /// The oracle on simplices given as vertex-cache rows, with the counters.
     pub(super) fn decide_rows(&mut self, rows: &[u32]) -> Result<Verdicts> {
+        let (verdicts, exact) = self.judge(rows)?;
+        self.count(&verdicts, exact);
+        Ok(verdicts)
+    }
+
+    /// The oracle on simplices given as vertex-cache rows, and how many decisions took the
+    /// exact path; the counters are left to [`Engine::count`] (so that naming may run
+    /// meanwhile).
+    pub(super) fn judge(&self, rows: &[u32]) -> Result<(Verdicts, u64)> {
         let n = self.ctx.k + 1;
         let m = rows.len() / n;
         let mut status = vec![Status::Outside; m];
         let mut lambda = vec![0.0; m * n];
-        self.stats.exact_decisions +=
-            self.ctx
-                .oracle
-                .decide(&self.values, rows, &mut status, &mut lambda)?;
-        self.stats.oracle_calls += m as u64;
-        for s in &status {
+        let exact = self
+            .ctx
+            .oracle
+            .decide(&self.values, rows, &mut status, &mut lambda)?;
+        Ok((Verdicts { status, lambda }, exact))
+    }
+
+    /// Counts the decisions `v`, of which `exact` took the exact path.
+    pub(super) fn count(&mut self, v: &Verdicts, exact: u64) {
+        self.stats.exact_decisions += exact;
+        self.stats.oracle_calls += v.status.len() as u64;
+        for s in &v.status {
             match s {
                 Status::Degenerate => self.stats.degenerate += 1,
                 Status::NonFinite => self.stats.non_finite += 1,
                 _ => {}
             }
         }
-        Ok(Verdicts { status, lambda })
     }
 
     /// Writes the vertex-cache index of every vertex of every candidate into `idx` (k+1 per

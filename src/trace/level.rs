@@ -13,6 +13,7 @@ use rayon::prelude::*;
 
 use super::engine::{Engine, Verdicts};
 use super::table::Key;
+use crate::cpu::decide::Status;
 use crate::cpu::pivot::Pivot;
 use crate::error::Result;
 use crate::triangulation::{Simplex, MAX_DIM};
@@ -356,8 +357,8 @@ impl<const W: usize> Work<'_, '_, W> {
 
 impl<const W: usize> Engine<'_, W> {
     /// One level: the crossed k-facets of the frontier's cofacets that are neither in S nor
-    /// in the rim, sorted by key, with their rows and points. `rows` holds the frontier's
-    /// vertex-cache rows. `None` when the trace must stop.
+    /// in the rim, sorted by key, with their rows and points. `None` when the trace must
+    /// stop.
     pub(super) fn step(
         &mut self,
         frontier: &Frontier,
@@ -367,51 +368,9 @@ impl<const W: usize> Engine<'_, W> {
             return Ok(Some(self.found([], with_points)));
         }
         let rows = &frontier.rows[..];
-        let (d, n) = (self.ctx.d, self.ctx.k + 1);
-        // Round 1: the pivot names one facet per cofacet.
-        let parts = par_ranges(frontier.range.len(), SIGMA_CHUNK, |r| -> Result<Named<W>> {
-            // Commonly under two new candidates and one deferred cofacet per simplex.
-            let mut namer = Namer::new(self, frontier, 2 * r.len(), r.len());
-            for i in r {
-                namer.all_cofacets(i)?;
-            }
-            Ok(namer.work.out)
-        });
-        let mut named = Named::with_capacity(0, 0);
-        named.extend(parts)?;
-        let per_cand = size_of::<Candidate<W>>() + n * 12 + d * 8 + 16;
-        if self.must_stop((named.cands.len() + 2 * named.deferred.len()) * per_cand) {
+        let Some((named, first)) = self.first_round(frontier)? else {
             return Ok(None);
-        }
-        if !named.deferred.is_empty() {
-            // Cofacets whose new vertex was not cached: evaluate f there, then name them.
-            let deferred = std::mem::take(&mut named.deferred);
-            let mut keys: Vec<Key<W>> = deferred.iter().map(|t| t.vertex).collect();
-            self.add_vertices(&mut keys)?;
-            let with_apex: Vec<(Deferred<W>, u32)> = deferred
-                .iter()
-                .map(|t| (*t, self.verts.find(&t.vertex).expect("just added")))
-                .collect();
-            let starts: Vec<usize> = (0..with_apex.len())
-                .filter(|&i| i == 0 || with_apex[i - 1].0.from != with_apex[i].0.from)
-                .collect();
-            let parts = par_ranges(starts.len(), SIGMA_CHUNK, |r| -> Result<Named<W>> {
-                let end = starts.get(r.end).copied().unwrap_or(with_apex.len());
-                let mut namer = Namer::new(self, frontier, end - starts[r.start], 0);
-                for s in r {
-                    let end = starts.get(s + 1).copied().unwrap_or(with_apex.len());
-                    let group = &with_apex[starts[s]..end];
-                    namer.some_cofacets(group[0].0.from as usize, group)?;
-                }
-                Ok(namer.work.out)
-            });
-            named.extend(parts)?;
-        }
-        self.stats.pivot_fallbacks += named.fallbacks;
-        self.stats.non_finite += named.non_finite;
-        let mut named = named.cands;
-        sort(&mut named);
-        let first = self.decide_unique(&named, rows)?;
+        };
 
         // Round 2: every facet of the cofacets whose named facet the oracle rejected.
         let mut retry: Vec<(u32, u32, u32)> = named
@@ -448,6 +407,120 @@ impl<const W: usize> Engine<'_, W> {
         sort(&mut second);
         let second = self.decide_unique(&second, rows)?;
         Ok(Some(self.found([first, second], with_points)))
+    }
+
+    /// Round 1 of a level: the pivot names one facet per cofacet of every frontier simplex,
+    /// and the oracle decides the named facets, each key once. Returns the named candidates,
+    /// sorted, and the decisions in key order; `None` when the trace must stop.
+    ///
+    /// With an oracle that decides off the CPU ([`Oracle::level_slice`]), a large frontier
+    /// goes in slices: slice c + 1 is named while slice c is decided, and a key named in
+    /// several slices is decided in the first. A verdict depends only on the key's vertex
+    /// values, so the result is the same as one batch's.
+    ///
+    /// [`Oracle::level_slice`]: super::Oracle::level_slice
+    #[allow(clippy::type_complexity)]
+    fn first_round(
+        &mut self,
+        frontier: &Frontier,
+    ) -> Result<Option<(Vec<Candidate<W>>, Decided<W>)>> {
+        let len = frontier.range.len();
+        let (d, n) = (self.ctx.d, self.ctx.k + 1);
+        let slice = self.ctx.oracle.level_slice().unwrap_or(len).max(1);
+        let slices: Vec<Range<usize>> = (0..len)
+            .step_by(slice)
+            .map(|s| s..(s + slice).min(len))
+            .collect();
+        let sliced = slices.len() > 1;
+        let per_cand = size_of::<Candidate<W>>() + n * 12 + d * 8 + 16;
+        let mut held = 0;
+        let mut named_all = Vec::new();
+        let mut taken = Taken::default();
+        let mut next = Some(self.name(frontier, slices[0].clone()));
+        for c in 0..slices.len() {
+            let mut named = next
+                .take()
+                .expect("each slice is named before it is decided")?;
+            held += (named.cands.len() + 2 * named.deferred.len()) * per_cand;
+            if self.must_stop(held) {
+                return Ok(None);
+            }
+            self.name_deferred(frontier, &mut named)?;
+            self.stats.pivot_fallbacks += named.fallbacks;
+            self.stats.non_finite += named.non_finite;
+            let mut cands = named.cands;
+            sort(&mut cands);
+            let new: Vec<&Candidate<W>> = firsts(&cands)
+                .filter(|c| !sliced || !taken.has(&c.key))
+                .collect();
+            let rows = cand_rows(&new, &frontier.rows, n);
+            let keys: Vec<Key<W>> = new.iter().map(|c| c.key).collect();
+            let (judged, named_next) = rayon::join(
+                || self.judge(&rows),
+                || slices.get(c + 1).map(|r| self.name(frontier, r.clone())),
+            );
+            next = named_next;
+            let (verdicts, exact) = judged?;
+            self.count(&verdicts, exact);
+            taken.push(keys, rows, verdicts);
+            if sliced {
+                named_all.extend_from_slice(&cands);
+            } else {
+                named_all = cands;
+            }
+        }
+        if sliced {
+            // Stable: merges the slices' sorted runs.
+            named_all.sort();
+        }
+        let first = taken.in_key_order(&named_all, &frontier.rows, n);
+        debug_assert!(first.keys.len() == firsts(&named_all).count());
+        Ok(Some((named_all, first)))
+    }
+
+    /// Round 1's naming for the frontier simplices `slice`: the exit of every cofacet whose
+    /// new vertex is cached; the others are deferred.
+    fn name(&self, frontier: &Frontier, slice: Range<usize>) -> Result<Named<W>> {
+        let parts = par_ranges(slice.len(), SIGMA_CHUNK, |r| -> Result<Named<W>> {
+            // Commonly under two new candidates and one deferred cofacet per simplex.
+            let mut namer = Namer::new(self, frontier, 2 * r.len(), r.len());
+            for i in r {
+                namer.all_cofacets(slice.start + i)?;
+            }
+            Ok(namer.work.out)
+        });
+        let mut named = Named::with_capacity(0, 0);
+        named.extend(parts)?;
+        Ok(named)
+    }
+
+    /// Evaluates f at the new vertices of the deferred cofacets of `named`, then names
+    /// their exits.
+    fn name_deferred(&mut self, frontier: &Frontier, named: &mut Named<W>) -> Result<()> {
+        if named.deferred.is_empty() {
+            return Ok(());
+        }
+        let deferred = std::mem::take(&mut named.deferred);
+        let mut keys: Vec<Key<W>> = deferred.iter().map(|t| t.vertex).collect();
+        self.add_vertices(&mut keys)?;
+        let with_apex: Vec<(Deferred<W>, u32)> = deferred
+            .iter()
+            .map(|t| (*t, self.verts.find(&t.vertex).expect("just added")))
+            .collect();
+        let starts: Vec<usize> = (0..with_apex.len())
+            .filter(|&i| i == 0 || with_apex[i - 1].0.from != with_apex[i].0.from)
+            .collect();
+        let parts = par_ranges(starts.len(), SIGMA_CHUNK, |r| -> Result<Named<W>> {
+            let end = starts.get(r.end).copied().unwrap_or(with_apex.len());
+            let mut namer = Namer::new(self, frontier, end - starts[r.start], 0);
+            for s in r {
+                let end = starts.get(s + 1).copied().unwrap_or(with_apex.len());
+                let group = &with_apex[starts[s]..end];
+                namer.some_cofacets(group[0].0.from as usize, group)?;
+            }
+            Ok(namer.work.out)
+        });
+        named.extend(parts)
     }
 
     /// Whether `key` is neither in S nor in the rim.
@@ -492,52 +565,14 @@ impl<const W: usize> Engine<'_, W> {
     /// frontier's vertex-cache rows.
     fn decide_unique(&mut self, cands: &[Candidate<W>], rows: &[u32]) -> Result<Decided<W>> {
         let n = self.ctx.k + 1;
-        let firsts: Vec<&Candidate<W>> = cands
-            .iter()
-            .enumerate()
-            .filter(|(i, c)| *i == 0 || cands[i - 1].key != c.key)
-            .map(|(_, c)| c)
-            .collect();
-        let mut cand_rows = vec![0u32; firsts.len() * n];
-        for (c, out) in firsts.iter().zip(cand_rows.chunks_exact_mut(n)) {
-            // Tau's row is sigma's with the new vertex inserted at apex_at; the facet
-            // drops tau's vertex `drop`.
-            let sigma = &rows[c.from as usize * n..(c.from as usize + 1) * n];
-            let (p, q) = (c.apex_at as usize, c.drop as usize);
-            let tau = |t: usize| match t.cmp(&p) {
-                std::cmp::Ordering::Less => sigma[t],
-                std::cmp::Ordering::Equal => c.apex,
-                std::cmp::Ordering::Greater => sigma[t - 1],
-            };
-            for (o, t) in out.iter_mut().zip((0..=n).filter(|&t| t != q)) {
-                *o = tau(t);
-            }
-        }
-        // Each candidate's way back: the vertex of its tau it lacks (tau's other crossed
-        // facet, if it is crossed, is the frontier simplex).
-        let mut back = Back::default();
-        for (i, c) in cands.iter().enumerate() {
-            if i > 0 && cands[i - 1].key != c.key {
-                back.end.push(back.vertices.len() as u32);
-            }
-            let sigma = &rows[c.from as usize * n..(c.from as usize + 1) * n];
-            let q = c.drop as usize;
-            let p = c.apex_at as usize;
-            back.vertices.push(match q.cmp(&p) {
-                std::cmp::Ordering::Less => sigma[q],
-                std::cmp::Ordering::Equal => c.apex,
-                std::cmp::Ordering::Greater => sigma[q - 1],
-            });
-        }
-        if !cands.is_empty() {
-            back.end.push(back.vertices.len() as u32);
-        }
+        let firsts: Vec<&Candidate<W>> = firsts(cands).collect();
+        let cand_rows = cand_rows(&firsts, rows, n);
         let verdicts = self.decide_rows(&cand_rows)?;
         Ok(Decided {
             keys: firsts.iter().map(|c| c.key).collect(),
             rows: cand_rows,
             verdicts,
-            back,
+            back: backs(cands, rows, n),
         })
     }
 
@@ -578,6 +613,139 @@ impl<const W: usize> Engine<'_, W> {
             keys: hits.iter().map(|h| h.0).collect(),
             rows: hits.iter().flat_map(|h| h.1.iter().copied()).collect(),
             points: parts.concat(),
+            back,
+        }
+    }
+}
+
+/// The first candidate of each key of the sorted `cands`.
+fn firsts<const W: usize>(cands: &[Candidate<W>]) -> impl Iterator<Item = &Candidate<W>> {
+    cands
+        .iter()
+        .enumerate()
+        .filter(|(i, c)| *i == 0 || cands[i - 1].key != c.key)
+        .map(|(_, c)| c)
+}
+
+/// The vertex-cache rows (`n` each) of candidates; `rows` holds the frontier's.
+fn cand_rows<const W: usize>(cands: &[&Candidate<W>], rows: &[u32], n: usize) -> Vec<u32> {
+    let mut out = vec![0u32; cands.len() * n];
+    for (c, row) in cands.iter().zip(out.chunks_exact_mut(n)) {
+        // Tau's row is sigma's with the new vertex inserted at apex_at; the facet drops
+        // tau's vertex `drop`.
+        let sigma = &rows[c.from as usize * n..(c.from as usize + 1) * n];
+        let (p, q) = (c.apex_at as usize, c.drop as usize);
+        let tau = |t: usize| match t.cmp(&p) {
+            std::cmp::Ordering::Less => sigma[t],
+            std::cmp::Ordering::Equal => c.apex,
+            std::cmp::Ordering::Greater => sigma[t - 1],
+        };
+        for (o, t) in row.iter_mut().zip((0..=n).filter(|&t| t != q)) {
+            *o = tau(t);
+        }
+    }
+    out
+}
+
+/// Each distinct key's way back, from the sorted candidates `cands`: the vertices of their
+/// cofacets tau that they lack (tau's other crossed facet, if it is crossed, is the
+/// frontier simplex).
+fn backs<const W: usize>(cands: &[Candidate<W>], rows: &[u32], n: usize) -> Back {
+    let mut back = Back::default();
+    for (i, c) in cands.iter().enumerate() {
+        if i > 0 && cands[i - 1].key != c.key {
+            back.end.push(back.vertices.len() as u32);
+        }
+        let sigma = &rows[c.from as usize * n..(c.from as usize + 1) * n];
+        let q = c.drop as usize;
+        let p = c.apex_at as usize;
+        back.vertices.push(match q.cmp(&p) {
+            std::cmp::Ordering::Less => sigma[q],
+            std::cmp::Ordering::Equal => c.apex,
+            std::cmp::Ordering::Greater => sigma[q - 1],
+        });
+    }
+    if !cands.is_empty() {
+        back.end.push(back.vertices.len() as u32);
+    }
+    back
+}
+
+/// Round 1's decisions in the order they were taken: slice by slice, in key order within
+/// a slice, no key twice.
+#[derive(Default)]
+struct Taken<const W: usize> {
+    keys: Vec<Key<W>>,
+    rows: Vec<u32>,
+    status: Vec<Status>,
+    lambda: Vec<f64>,
+    /// Where each slice's keys start.
+    starts: Vec<usize>,
+}
+
+impl<const W: usize> Taken<W> {
+    /// Whether an earlier slice decided `key`.
+    fn has(&self, key: &Key<W>) -> bool {
+        let ends = self.starts.iter().skip(1).copied().chain([self.keys.len()]);
+        self.starts
+            .iter()
+            .zip(ends)
+            .any(|(&s, e)| self.keys[s..e].binary_search(key).is_ok())
+    }
+
+    /// Appends a slice's decisions.
+    fn push(&mut self, keys: Vec<Key<W>>, rows: Vec<u32>, v: Verdicts) {
+        self.starts.push(self.keys.len());
+        if self.keys.is_empty() {
+            (self.keys, self.rows, self.status, self.lambda) = (keys, rows, v.status, v.lambda);
+        } else {
+            self.keys.extend_from_slice(&keys);
+            self.rows.extend_from_slice(&rows);
+            self.status.extend_from_slice(&v.status);
+            self.lambda.extend_from_slice(&v.lambda);
+        }
+    }
+
+    /// The decisions in key order, with the ways back of the sorted candidates `cands`
+    /// (whose distinct keys are exactly these).
+    fn in_key_order(self, cands: &[Candidate<W>], rows: &[u32], n: usize) -> Decided<W> {
+        let back = backs(cands, rows, n);
+        if self.starts.len() <= 1 {
+            return Decided {
+                keys: self.keys,
+                rows: self.rows,
+                verdicts: Verdicts {
+                    status: self.status,
+                    lambda: self.lambda,
+                },
+                back,
+            };
+        }
+        // A stable sort finds the slices' sorted runs and merges them.
+        let mut order: Vec<(Key<W>, u32)> = (0..self.keys.len())
+            .map(|i| (self.keys[i], i as u32))
+            .collect();
+        order.sort();
+        let rows_of = |v: &[u32], i: u32| {
+            let i = i as usize;
+            v[i * n..(i + 1) * n].to_vec()
+        };
+        Decided {
+            keys: order.iter().map(|o| o.0).collect(),
+            rows: order
+                .iter()
+                .flat_map(|o| rows_of(&self.rows, o.1))
+                .collect(),
+            verdicts: Verdicts {
+                status: order.iter().map(|o| self.status[o.1 as usize]).collect(),
+                lambda: order
+                    .iter()
+                    .flat_map(|o| {
+                        let i = o.1 as usize;
+                        self.lambda[i * n..(i + 1) * n].iter().copied()
+                    })
+                    .collect(),
+            },
             back,
         }
     }

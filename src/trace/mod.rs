@@ -134,6 +134,9 @@ impl std::fmt::Display for StopReason {
 pub struct TraceStats {
     /// Breadth-first levels.
     pub levels: u64,
+    /// Most simplices one level found: the largest frontier, which sizes tracing's largest
+    /// oracle batches.
+    pub widest_level: u64,
     /// k-simplices sent to the oracle.
     pub oracle_calls: u64,
     /// Cofacets whose other crossed facet was found by testing all their facets, where the
@@ -577,12 +580,54 @@ mod tests {
             let words = ctx.codec.words();
             let wrong = with_width!(words, trace_with(&p.system, ctx, &seeds, 0, 1)).unwrap();
             assert!(wrong.stats.pivot_fallbacks > 0, "{name}: no fallback");
-            assert_eq!(right.len(), wrong.len(), "{name}");
-            assert!(
-                (0..right.len()).all(|i| right.key(i) == wrong.key(i)),
-                "{name}: the samples differ"
+            // The same with levels decided in slices of 5 frontier simplices.
+            let sliced = Sliced(CpuOracle::new(&p.system));
+            let mut ctx = context(&p.system, &tri, &sliced, &opts).unwrap();
+            ctx.scramble_pivots = true;
+            let wrong_sliced =
+                with_width!(words, trace_with(&p.system, ctx, &seeds, 0, 1)).unwrap();
+            assert_eq!(
+                wrong.stats.pivot_fallbacks, wrong_sliced.stats.pivot_fallbacks,
+                "{name}"
             );
-            assert_eq!(right.points(), wrong.points(), "{name}");
+            assert_eq!(wrong.stats.oracle_calls, wrong_sliced.stats.oracle_calls);
+            for other in [&wrong, &wrong_sliced] {
+                assert_eq!(right.len(), other.len(), "{name}");
+                assert!(
+                    (0..right.len()).all(|i| right.key(i) == other.key(i)),
+                    "{name}: the samples differ"
+                );
+                assert_eq!(right.points(), other.points(), "{name}");
+            }
+        }
+    }
+
+    /// The CPU oracle, deciding trace levels in slices of 5 frontier simplices.
+    struct Sliced<'f>(CpuOracle<'f>);
+
+    impl Oracle for Sliced<'_> {
+        fn name(&self) -> String {
+            self.0.name()
+        }
+        fn eval_vertices(
+            &self,
+            tri: &Triangulation,
+            lattice: &[i32],
+            out: &mut [f64],
+        ) -> Result<()> {
+            self.0.eval_vertices(tri, lattice, out)
+        }
+        fn decide(
+            &self,
+            values: &[f64],
+            simplices: &[u32],
+            status: &mut [crate::cpu::decide::Status],
+            lambda: &mut [f64],
+        ) -> Result<u64> {
+            self.0.decide(values, simplices, status, lambda)
+        }
+        fn level_slice(&self) -> Option<usize> {
+            Some(5)
         }
     }
 }

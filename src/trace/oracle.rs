@@ -45,6 +45,14 @@ pub trait Oracle: Sync {
         lambda: &mut [f64],
     ) -> Result<u64>;
 
+    /// Frontier simplices per slice of a trace level, for an oracle whose decisions run off
+    /// the CPU (a device): the level is then named and decided slice by slice, naming slice
+    /// c + 1 on the CPU while slice c is decided. `None` (the default) decides each level as
+    /// one batch. The traced sample does not depend on it.
+    fn level_slice(&self) -> Option<usize> {
+        None
+    }
+
     /// The exhaustive scan's candidate k-simplices in the cubes based at the grid vertices
     /// `cubes`, in order of base, then chain. Every backend must give exactly
     /// [`scan::candidates`], which is the default.
