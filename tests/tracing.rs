@@ -789,6 +789,17 @@ fn the_scan_grid_holds_exactly_the_vertices_near_its_box() {
             0.1,
         ),
         (
+            "Coxeter d=6, offset, rotated",
+            Triangulation::coxeter(6)
+                .edge(1.0)
+                .offset_seed(2)
+                .rotation_seed(3)
+                .build()
+                .unwrap(),
+            0.3,
+            0.05,
+        ),
+        (
             "sheared d=3",
             Triangulation::custom(vec![
                 vec![0.2, 0.15, 0.0],

@@ -4,6 +4,8 @@
 //! code that candidate generation reads (on the CPU, [`crate::cpu::scan`]; on a GPU,
 //! `shaders/scan.wgsl`).
 
+use std::ops::Range;
+
 use rayon::prelude::*;
 
 use super::exhaustive::MAX_SCAN_DIM;
@@ -15,6 +17,8 @@ use crate::triangulation::MAX_DIM;
 
 /// Vertices per evaluation slab.
 const SLAB: usize = 1 << 16;
+/// Vertices per parallel work item when listing a slab's coordinates.
+const FILL: usize = 1 << 12;
 
 /// The lattice vertices of an exhaustive scan (those within two edges of its box), with f and
 /// a sign code at each.
@@ -111,6 +115,32 @@ impl ScanGrid {
         for j in 1..self.n.len() {
             out[j] = (self.lo[j] + (r % self.n[j]) as i64) as i32;
             r /= self.n[j];
+        }
+    }
+
+    /// Lattice coordinates of the vertices `range` into `out` (d each), row by row.
+    fn fill_coords(&self, range: Range<usize>, out: &mut [i32]) {
+        let d = self.dim();
+        if range.is_empty() {
+            return;
+        }
+        let mut r = self.row_of(range.start);
+        let mut v = [0i32; MAX_DIM];
+        let mut idx = range.start;
+        let mut slots = out.chunks_exact_mut(d);
+        while idx < range.end {
+            let row = self.rows[r];
+            self.row_coords(row.id, &mut v[..d]);
+            let end = (row.offset + row.len as usize).min(range.end);
+            for i in idx..end {
+                v[0] = (row.start + (i - row.offset) as i64) as i32;
+                slots
+                    .next()
+                    .expect("d coordinates per vertex")
+                    .copy_from_slice(&v[..d]);
+            }
+            idx = end;
+            r += 1;
         }
     }
 
@@ -237,17 +267,29 @@ fn near_rows(ctx: &TraceContext, near: &[[f64; 2]]) -> Result<ScanGrid> {
 }
 
 /// The depth-first walk over the rows that can hold vertices in a box: on each axis from d - 1
-/// down to 1, only the values from which x = b + A u can still reach the box, with the axes
-/// below free over their whole ranges (interval bounds, padded against rounding).
+/// down to 1, exactly the values of u_j for which some real u_0..u_{j-1} put x = b + A u in
+/// the box (padded against rounding).
+///
+/// With u_j..u_{d-1} fixed, x sweeps the affine subspace s + V_j, V_j spanned by the columns
+/// A_0..A_{j-1}; it meets the box B iff the projection of s along V_j lies in the projection
+/// of B, a zonotope. Its facets have the normals n orthogonal to V_j and to d - 1 - j of the
+/// coordinate axes, so the test is n . s in [min n . B, max n . B] for each such n: a slab.
 struct RowWalk<'a> {
     ctx: &'a TraceContext<'a>,
     a: Vec<f64>,
     lo: &'a [i64],
     n: &'a [usize],
-    near: &'a [[f64; 2]],
-    /// Per axis j and coordinate r, the range of sum_{i < j} A[r][i] u_i over the axes' ranges.
-    free: Vec<Vec<[f64; 2]>>,
-    pad: f64,
+    /// Per axis j >= 1, the slabs of its facet normals.
+    slabs: Vec<Vec<Slab>>,
+}
+
+/// n . x in [lo, hi] for x in the padded box; `along` is n . A_j, for the axis j chosen.
+#[derive(Clone, Copy)]
+struct Slab {
+    n: [f64; MAX_DIM],
+    along: f64,
+    lo: f64,
+    hi: f64,
 }
 
 impl<'a> RowWalk<'a> {
@@ -260,35 +302,44 @@ impl<'a> RowWalk<'a> {
         near: &'a [[f64; 2]],
     ) -> Self {
         let d = ctx.d;
-        let mut free = vec![vec![[0.0; 2]; d]; d];
-        for j in 1..d {
-            for r in 0..d {
-                let i = j - 1;
-                let (p, q) = (
-                    a[r * d + i] * lo[i] as f64,
-                    a[r * d + i] * (lo[i] + n[i] as i64 - 1) as f64,
-                );
-                let [fmin, fmax] = free[j - 1][r];
-                free[j][r] = [fmin + p.min(q), fmax + p.max(q)];
-            }
-        }
         let scale = near
             .iter()
             .chain(std::iter::once(&[ctx.tri.edge(), 0.0]))
             .map(|[l, h]| l.abs().max(h.abs()))
             .fold(1.0, f64::max);
+        let pad = 1e-9 * scale;
+        let column = |i: usize| -> Vec<f64> { (0..d).map(|r| a[r * d + i]).collect() };
+        let slabs = (0..d)
+            .map(|j| {
+                let span: Vec<Vec<f64>> = (0..j).map(column).collect();
+                let aj = column(j);
+                facet_normals(&span, d)
+                    .into_iter()
+                    .map(|v| {
+                        let mut n = [0.0; MAX_DIM];
+                        n[..d].copy_from_slice(&v);
+                        let (mut lo, mut hi) = (0.0, 0.0);
+                        for (r, [l, h]) in near.iter().enumerate() {
+                            let (p, q) = (n[r] * (l - pad), n[r] * (h + pad));
+                            lo += p.min(q);
+                            hi += p.max(q);
+                        }
+                        let along = v.iter().zip(&aj).map(|(x, y)| x * y).sum();
+                        Slab { n, along, lo, hi }
+                    })
+                    .collect()
+            })
+            .collect();
         RowWalk {
             ctx,
             a,
             lo,
             n,
-            near,
-            free,
-            pad: 1e-9 * scale,
+            slabs,
         }
     }
 
-    /// The values of u_j from which the box can be reached, where `s` is b plus the
+    /// The values of u_j (j >= 1) from which the box can be reached, where `s` is b plus the
     /// contribution of the axes above j.
     fn values(&self, j: usize, s: &[f64]) -> Option<(i64, i64)> {
         let d = self.ctx.d;
@@ -296,17 +347,17 @@ impl<'a> RowWalk<'a> {
             self.lo[j] as f64,
             (self.lo[j] + self.n[j] as i64 - 1) as f64,
         );
-        for r in 0..d {
-            let c = self.a[r * d + j];
-            let [fmin, fmax] = self.free[j][r];
-            let [lo, hi] = self.near[r];
-            let (below, above) = (lo - self.pad - s[r] - fmax, hi + self.pad - s[r] - fmin);
-            if c == 0.0 {
+        for slab in &self.slabs[j] {
+            let ns: f64 = slab.n[..d].iter().zip(&s[..d]).map(|(x, y)| x * y).sum();
+            let (below, above) = (slab.lo - ns, slab.hi - ns);
+            // A relative tolerance on n . A_j: a normal computed for a direction that A_j
+            // nearly lies in is treated as parallel.
+            if slab.along.abs() <= 1e-12 {
                 if below > 0.0 || above < 0.0 {
                     return None;
                 }
             } else {
-                let (p, q) = (below / c, above / c);
+                let (p, q) = (below / slab.along, above / slab.along);
                 t0 = t0.max(p.min(q));
                 t1 = t1.min(p.max(q));
             }
@@ -383,9 +434,12 @@ pub(crate) fn build(ctx: &TraceContext, bbox: &[[f64; 2]]) -> Result<ScanGrid> {
         let end = (start + SLAB).min(total);
         let mut lattice = vec![0i32; (end - start) * d];
         lattice
-            .par_chunks_mut(d)
+            .par_chunks_mut(FILL * d)
             .enumerate()
-            .for_each(|(i, v)| grid.coords(start + i, v));
+            .for_each(|(c, v)| {
+                let from = start + c * FILL;
+                grid.fill_coords(from..from + v.len() / d, v)
+            });
         let values = &mut grid.values[start * k..end * k];
         ctx.oracle.eval_vertices(ctx.tri, &lattice, values)?;
         grid.codes[start..end]
@@ -400,4 +454,64 @@ pub(crate) fn build(ctx: &TraceContext, bbox: &[[f64; 2]]) -> Result<ScanGrid> {
             });
     }
     Ok(grid)
+}
+
+/// Unit normals n (one per sign pair) orthogonal to the vectors `span` (j of them, in R^d)
+/// and to d - 1 - j coordinate axes: the facet normals of the projection of a box along
+/// span. Subsets of axes that leave more than one direction free give none.
+fn facet_normals(span: &[Vec<f64>], d: usize) -> Vec<Vec<f64>> {
+    let j = span.len();
+    let mut out = Vec::new();
+    // The axes a normal may use: j + 1 of the d, the others are orthogonal to it.
+    for mask in 0u32..1 << d {
+        if mask.count_ones() as usize != j + 1 {
+            continue;
+        }
+        let q: Vec<usize> = (0..d).filter(|&r| mask >> r & 1 == 1).collect();
+        // Orthonormalize the span restricted to those axes (modified Gram-Schmidt, twice).
+        let mut basis: Vec<Vec<f64>> = Vec::new();
+        let mut full_rank = true;
+        for v in span {
+            let mut w: Vec<f64> = q.iter().map(|&r| v[r]).collect();
+            let norm0 = w.iter().map(|x| x * x).sum::<f64>().sqrt();
+            for _ in 0..2 {
+                for b in &basis {
+                    let dot: f64 = w.iter().zip(b).map(|(x, y)| x * y).sum();
+                    w.iter_mut().zip(b).for_each(|(x, y)| *x -= dot * y);
+                }
+            }
+            let norm = w.iter().map(|x| x * x).sum::<f64>().sqrt();
+            if norm <= 1e-10 * norm0.max(f64::MIN_POSITIVE) {
+                full_rank = false;
+                break;
+            }
+            basis.push(w.iter().map(|x| x / norm).collect());
+        }
+        if !full_rank {
+            continue;
+        }
+        // The direction left: the axis vector with the largest residual, projected.
+        let mut best: Option<(f64, Vec<f64>)> = None;
+        for t in 0..=j {
+            let mut w = vec![0.0; j + 1];
+            w[t] = 1.0;
+            for _ in 0..2 {
+                for b in &basis {
+                    let dot: f64 = w.iter().zip(b).map(|(x, y)| x * y).sum();
+                    w.iter_mut().zip(b).for_each(|(x, y)| *x -= dot * y);
+                }
+            }
+            let norm = w.iter().map(|x| x * x).sum::<f64>().sqrt();
+            if best.as_ref().is_none_or(|(m, _)| norm > *m) {
+                best = Some((norm, w));
+            }
+        }
+        let (norm, w) = best.expect("j + 1 >= 1 candidates");
+        let mut n = vec![0.0; d];
+        for (&r, x) in q.iter().zip(&w) {
+            n[r] = x / norm;
+        }
+        out.push(n);
+    }
+    out
 }
