@@ -443,14 +443,16 @@ fn concurrent_exhaustive_scans_share_the_pool_without_deadlock() {
     assert!(same && n > 1000, "the scans differ ({n} simplices)");
 }
 
-/// The CPU oracle, raising a cancel flag once it has decided a batch with crossings (a Ctrl-C
-/// mid-scan).
-struct CancelAfterCrossings<'a> {
+/// The CPU oracle with test behaviours: `cancel`, raised once it has decided a batch with
+/// crossings (a Ctrl-C mid-scan); `slice`, trace levels asked for in slices of that many
+/// frontier simplices, as an oracle that decides on a device does.
+struct Probe<'a> {
     inner: CpuOracle<'a>,
-    cancel: std::sync::Arc<std::sync::atomic::AtomicBool>,
+    cancel: Option<std::sync::Arc<std::sync::atomic::AtomicBool>>,
+    slice: Option<usize>,
 }
 
-impl Oracle for CancelAfterCrossings<'_> {
+impl Oracle for Probe<'_> {
     fn name(&self) -> String {
         self.inner.name()
     }
@@ -470,11 +472,15 @@ impl Oracle for CancelAfterCrossings<'_> {
         lambda: &mut [f64],
     ) -> isomesh::Result<u64> {
         let exact = self.inner.decide(values, simplices, status, lambda)?;
-        if status.iter().any(|s| s.crossed()) {
-            self.cancel
-                .store(true, std::sync::atomic::Ordering::Relaxed);
+        if let Some(c) = &self.cancel {
+            if status.iter().any(|s| s.crossed()) {
+                c.store(true, std::sync::atomic::Ordering::Relaxed);
+            }
         }
         Ok(exact)
+    }
+    fn level_slice(&self) -> Option<usize> {
+        self.slice
     }
 }
 
@@ -490,9 +496,10 @@ fn an_interrupted_exhaustive_scan_keeps_what_it_found() {
     let full = exhaustive(&p.system, &tri, &CpuOracle::new(&p.system), &opts).unwrap();
     let cancel = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
     opts.cancel = Some(cancel.clone());
-    let oracle = CancelAfterCrossings {
+    let oracle = Probe {
         inner: CpuOracle::new(&p.system),
-        cancel,
+        cancel: Some(cancel),
+        slice: None,
     };
     let part = exhaustive(&p.system, &tri, &oracle, &opts).unwrap();
     assert_eq!(part.stats.stopped, Some(StopReason::Interrupted));
@@ -505,39 +512,6 @@ fn an_interrupted_exhaustive_scan_keeps_what_it_found() {
     );
     let all: HashSet<&[u64]> = full.sorted_keys().into_iter().collect();
     assert!(part.sorted_keys().iter().all(|k| all.contains(k)));
-}
-
-/// The CPU oracle, asking for trace levels in slices of `slice` frontier simplices, as an
-/// oracle that decides on a device does.
-struct Sliced<'a> {
-    inner: CpuOracle<'a>,
-    slice: usize,
-}
-
-impl Oracle for Sliced<'_> {
-    fn name(&self) -> String {
-        self.inner.name()
-    }
-    fn eval_vertices(
-        &self,
-        tri: &Triangulation,
-        lattice: &[i32],
-        values: &mut [f64],
-    ) -> isomesh::Result<()> {
-        self.inner.eval_vertices(tri, lattice, values)
-    }
-    fn decide(
-        &self,
-        values: &[f64],
-        simplices: &[u32],
-        status: &mut [Status],
-        lambda: &mut [f64],
-    ) -> isomesh::Result<u64> {
-        self.inner.decide(values, simplices, status, lambda)
-    }
-    fn level_slice(&self) -> Option<usize> {
-        Some(self.slice)
-    }
 }
 
 /// Two samples are the same: keys in the same order, the same point bits, the same rim and
@@ -594,9 +568,10 @@ fn levels_decided_in_slices_trace_exactly_as_one_batch() {
         let whole = trace(&p.system, &tri, &CpuOracle::new(&p.system), &opts).unwrap();
         let widest = whole.stats.widest_level as usize;
         for slice in [1, 7, widest / 3 + 1] {
-            let oracle = Sliced {
+            let oracle = Probe {
                 inner: CpuOracle::new(&p.system),
-                slice,
+                cancel: None,
+                slice: Some(slice),
             };
             let sliced = trace(&p.system, &tri, &oracle, &opts).unwrap();
             let what = format!("{} in R^{}, slices of {slice}", p.name, p.dim());
