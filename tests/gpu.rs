@@ -177,7 +177,7 @@ fn gpu_traces_give_the_cpu_sample_and_topology() {
             let oracle = GpuOracle::new(gpu().unwrap(), &p.system, precision).unwrap();
             // Every other case decides its levels in slices of 7 frontier simplices, naming
             // the next slice while the device decides one; the others in one batch (the
-            // default slices only levels far wider than these).
+            // default).
             let slice = if i % 2 == 1 { 7 } else { 0 };
             oracle.set_level_slice(slice);
             let gpu = run(&p, &oracle);

@@ -94,8 +94,8 @@ pub struct TraceArgs {
     #[arg(long, value_enum)]
     pub precision: Option<PrecisionArg>,
     /// GPU backend: frontier simplices per slice of a trace level; wider levels are decided
-    /// slice by slice, the next slice named on the CPU meanwhile (default 16384 on hardware
-    /// GPUs, 0 = whole levels on software adapters). The result does not depend on it.
+    /// slice by slice, the next slice named on the CPU meanwhile (for example 16384; default
+    /// 0: whole levels). The result does not depend on it.
     #[arg(long)]
     pub level_slice: Option<usize>,
     /// Worker threads (default: all cores).

@@ -53,9 +53,6 @@ const MAX_RELATIVE_BOUND: f64 = 0.125;
 const WORKGROUP: u32 = 64;
 /// Simplices per pipelined chunk of a decision batch.
 const PIPELINE_CHUNK: usize = 1 << 17;
-/// Frontier simplices per slice of a trace level on a hardware GPU (2 to 4 candidates
-/// each): wider levels overlap naming on the CPU with deciding on the device.
-pub const LEVEL_SLICE: usize = 1 << 14;
 /// Workgroups per dispatch row (the limit per dimension).
 const MAX_GROUPS: u32 = 65_535;
 
@@ -192,11 +189,6 @@ impl<'f> GpuOracle<'f> {
         };
         let k = f.codim();
         let solve = pipeline(&gpu, &solve_shader(k, precision)?, "solve")?;
-        let level_slice = if gpu.adapter.is_software() {
-            0
-        } else {
-            LEVEL_SLICE
-        };
         Ok(GpuOracle {
             gpu,
             f,
@@ -207,7 +199,7 @@ impl<'f> GpuOracle<'f> {
             scan: OnceLock::new(),
             scan_density: AtomicU64::new(1 << 12),
             binding_limit: AtomicU64::new(1 << 30),
-            level_slice: AtomicUsize::new(level_slice),
+            level_slice: AtomicUsize::new(0),
             solved: AtomicU64::new(0),
             rechecked: AtomicU64::new(0),
             gpu_ns: AtomicU64::new(0),
@@ -274,9 +266,9 @@ impl<'f> GpuOracle<'f> {
 
     /// Frontier simplices per slice of a trace level: wider levels are decided slice by
     /// slice, the next slice named on the CPU while the device decides one
-    /// ([`Oracle::level_slice`]); 0 decides every level as one batch. The default is
-    /// [`LEVEL_SLICE`] on hardware adapters and 0 on software ones (lavapipe), whose device
-    /// work runs on the same cores as the naming. Results are the same.
+    /// ([`Oracle::level_slice`]). 0, the default, decides every level as one batch. Results
+    /// are the same. Off by default because it measured no gain on lavapipe, whose device
+    /// work runs on the CPU's cores; it is meant for a hardware GPU whose waits are long.
     pub fn set_level_slice(&self, simplices: usize) {
         self.level_slice.store(simplices, Ordering::Relaxed);
     }
