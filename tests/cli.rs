@@ -59,9 +59,13 @@ fn trace_writes_the_sample_and_the_report() {
         "peak_memory_bytes",
         "oracle_calls",
         "pivot_fallbacks",
+        "widest_level",
+        "suspect_crossings",
     ] {
         assert!(r.get(key).is_some(), "report lacks {key}: {r}");
     }
+    assert_eq!(r["suspect_crossings"], 0);
+    assert!(r["widest_level"].as_u64().unwrap() >= 2);
     // Pivoting: about one oracle call per output simplex, no fallback on a plain circle.
     let calls = r["oracle_calls"].as_u64().unwrap();
     let count = r["simplex_count"].as_u64().unwrap();
@@ -307,6 +311,38 @@ fn bad_requests_fail_cleanly() {
         "projection",
     );
     assert!(!dir.join("c.off").exists() && !dir.join("c.off.partial").exists());
+}
+
+#[test]
+fn a_pole_is_meshed_with_a_warning() {
+    let dir = scratch("pole");
+    std::fs::write(
+        dir.join("pole.toml"),
+        "variables = [\"x\", \"y\"]\nequations = [\"1/x\"]\nbox = [[-1, 1], [-1, 1]]\n",
+    )
+    .unwrap();
+    let o = isomesh(
+        &dir,
+        &[
+            "trace",
+            "pole.toml",
+            "--exhaustive",
+            "--edge",
+            "0.05",
+            "--no-complex",
+            "--report",
+            "r.json",
+        ],
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let e = stderr(&o);
+    assert!(
+        e.contains("warning:") && e.contains("pole or a jump"),
+        "{e}"
+    );
+    let r = report(&dir, "r.json");
+    assert!(r["simplex_count"].as_u64().unwrap() > 0);
+    assert!(r["suspect_crossings"].as_u64().unwrap() > 0, "{r}");
 }
 
 /// Runs isomesh with every GPU driver hidden.

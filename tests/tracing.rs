@@ -585,6 +585,44 @@ fn levels_decided_in_slices_trace_exactly_as_one_batch() {
     );
 }
 
+/// A pole or a jump of f makes the PL approximation change sign without a zero; the sample
+/// reports such crossings, and none on the smooth tracing cases.
+#[test]
+fn poles_and_jumps_are_reported_and_smooth_functions_are_not() {
+    for (name, params, bbox, edges, _) in cases() {
+        for edge in edges {
+            let p = problem(name, &params, edge);
+            let s = run(&p, Some(bbox.clone()), false);
+            let n = s.suspect_crossings(&p.system);
+            assert_eq!(n, 0, "{name} {params:?} edge {edge}: {n} of {}", s.len());
+        }
+    }
+    let jumps: [(usize, &str); 3] = [
+        // No zero at all: a pole along x = 0.
+        (2, "1/x"),
+        // No zero in the box: a jump along x = 0.1.
+        (2, "(x - 0.1) / abs(x - 0.1) + 0.5 * y"),
+        // The unit sphere, and a pole along x = 0.3.
+        (3, "(x^2 + y^2 + z^2 - 1) / (x - 0.3)"),
+    ];
+    for (d, eq) in jumps {
+        let sys = EquationSystem::parse_simple(d, &[eq]).unwrap();
+        let tri = Triangulation::coxeter(d)
+            .edge(0.05)
+            .offset_seed(1)
+            .rotation_seed(1)
+            .build()
+            .unwrap();
+        let opts = TraceOptions {
+            bbox: Some(cube(d, 1.0)),
+            ..TraceOptions::default()
+        };
+        let s = exhaustive(&sys, &tri, &CpuOracle::new(&sys), &opts).unwrap();
+        let n = s.suspect_crossings(&sys);
+        assert!(!s.is_empty() && n > 0, "{eq}: {n} of {}", s.len());
+    }
+}
+
 #[test]
 fn closures_trace_like_equations() {
     let p = problem("torus", &[], 0.1);

@@ -370,6 +370,15 @@ fn run_in_pool(p: &Problem, args: &TraceArgs, threads: usize) -> Result<()> {
     };
     let peak = memory::peak_bytes().saturating_sub(base);
     bar.finish_and_clear();
+    let suspect = sample.suspect_crossings(sys);
+    if suspect > 0 {
+        eprintln!(
+            "warning: at {suspect} of {} crossings |f| is more than half the spread of its \
+             values at the simplex's vertices: f may have a pole or a jump there (the mesh \
+             then shows a sign change, not a zero), or the edge is too coarse for f",
+            sample.len()
+        );
+    }
 
     let outputs = args
         .out
@@ -478,6 +487,7 @@ fn run_in_pool(p: &Problem, args: &TraceArgs, threads: usize) -> Result<()> {
             "non_finite": st.non_finite,
             "vertices_evaluated": st.vertices,
             "seed_points": st.seed_points,
+            "suspect_crossings": suspect,
             "complete": st.stopped.is_none(),
             "stopped": st.stopped.as_ref().map(|s| s.to_string()),
             "error": failure.as_ref().map(|e| e.to_string()),

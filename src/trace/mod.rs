@@ -283,6 +283,93 @@ impl Sample {
         out
     }
 
+    /// How many crossings look like a jump of f rather than a zero: for some component c,
+    /// |f_c| at the crossing point is more than half the spread of f_c's values at the
+    /// simplex's vertices (max - min), or is not finite, while that spread is not small (at
+    /// least its median over S).
+    ///
+    /// Where f is smooth and the edge fine, |f| at the point is second order in the edge and
+    /// the spread first order: on the presets at their default edges the ratio stays under
+    /// 0.25. Simplices lying almost within M have a second-order spread too: the median test
+    /// leaves them out. Across a pole (1/x) or a jump (sign(x)) f is large on both sides,
+    /// and S then holds a sheet where f changes sign without a zero. `f` is the function the
+    /// sample was traced for.
+    pub fn suspect_crossings(&self, f: &dyn ImplicitFunction) -> usize {
+        const CHUNK: usize = 256;
+        let (d, k) = (self.ambient_dim(), self.codim());
+        let n = self.len();
+        // Per crossing and component: the spread of the vertex values, negated where |f| at
+        // the point exceeds half of it, NaN where the point is unknown.
+        let marked: Vec<f64> = (0..n.div_ceil(CHUNK))
+            .into_par_iter()
+            .map_init(
+                || self.point_work(),
+                |w, c| {
+                    let range = c * CHUNK..((c + 1) * CHUNK).min(n);
+                    let mut points = vec![0.0; range.len() * d];
+                    let mut spread = vec![0.0f64; range.len() * k];
+                    let mut low = vec![f64::INFINITY; k];
+                    for (i, (p, m)) in range
+                        .clone()
+                        .zip(points.chunks_exact_mut(d).zip(spread.chunks_exact_mut(k)))
+                    {
+                        self.point_into(i, w, p);
+                        low.fill(f64::INFINITY);
+                        m.fill(f64::NEG_INFINITY);
+                        for row in w.values.chunks_exact(k) {
+                            for ((l, h), v) in low.iter_mut().zip(m.iter_mut()).zip(row) {
+                                *l = l.min(*v);
+                                *h = h.max(*v);
+                            }
+                        }
+                        m.iter_mut().zip(&low).for_each(|(h, l)| *h -= l);
+                    }
+                    let mut at = vec![0.0; range.len() * k];
+                    f.eval_batch(&points, &mut at);
+                    for ((m, a), p) in spread
+                        .chunks_exact_mut(k)
+                        .zip(at.chunks_exact(k))
+                        .zip(points.chunks_exact(d))
+                    {
+                        for (m, a) in m.iter_mut().zip(a) {
+                            if !p[0].is_finite() {
+                                *m = f64::NAN;
+                            } else if a.is_nan() || a.abs() > 0.5 * *m {
+                                *m = -*m;
+                            }
+                        }
+                    }
+                    spread
+                },
+            )
+            .flatten_iter()
+            .collect();
+        let medians: Vec<f64> = (0..k)
+            .map(|c| {
+                let mut v: Vec<f64> = marked
+                    .iter()
+                    .skip(c)
+                    .step_by(k)
+                    .filter(|x| !x.is_nan())
+                    .map(|x| x.abs())
+                    .collect();
+                if v.is_empty() {
+                    return 0.0;
+                }
+                let mid = v.len() / 2;
+                *v.select_nth_unstable_by(mid, f64::total_cmp).1
+            })
+            .collect();
+        marked
+            .chunks_exact(k)
+            .filter(|m| {
+                m.iter()
+                    .zip(&medians)
+                    .any(|(x, med)| x.is_sign_negative() && -x >= *med)
+            })
+            .count()
+    }
+
     /// (simplex, point) pairs in order.
     pub fn iter(&self) -> impl Iterator<Item = (Simplex, Vec<f64>)> + '_ {
         let mut w = self.point_work();
