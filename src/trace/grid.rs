@@ -283,7 +283,8 @@ struct RowWalk<'a> {
     slabs: Vec<Vec<Slab>>,
 }
 
-/// n . x in [lo, hi] for x in the padded box; `along` is n . A_j, for the axis j chosen.
+/// n . x in [lo, hi] for x in the padded box; `along` is n . A_j, for the axis j chosen
+/// (0 where A_j is parallel to the facet).
 #[derive(Clone, Copy)]
 struct Slab {
     n: [f64; MAX_DIM],
@@ -324,7 +325,14 @@ impl<'a> RowWalk<'a> {
                             lo += p.min(q);
                             hi += p.max(q);
                         }
-                        let along = v.iter().zip(&aj).map(|(x, y)| x * y).sum();
+                        // n is a unit vector: A_j nearly orthogonal to it counts as
+                        // parallel to the facet.
+                        let along: f64 = v.iter().zip(&aj).map(|(x, y)| x * y).sum();
+                        let along = if along.abs() <= 1e-12 * norm(&aj) {
+                            0.0
+                        } else {
+                            along
+                        };
                         Slab { n, along, lo, hi }
                     })
                     .collect()
@@ -350,9 +358,7 @@ impl<'a> RowWalk<'a> {
         for slab in &self.slabs[j] {
             let ns: f64 = slab.n[..d].iter().zip(&s[..d]).map(|(x, y)| x * y).sum();
             let (below, above) = (slab.lo - ns, slab.hi - ns);
-            // A relative tolerance on n . A_j: a normal computed for a direction that A_j
-            // nearly lies in is treated as parallel.
-            if slab.along.abs() <= 1e-12 {
+            if slab.along == 0.0 {
                 if below > 0.0 || above < 0.0 {
                     return None;
                 }
@@ -468,50 +474,57 @@ fn facet_normals(span: &[Vec<f64>], d: usize) -> Vec<Vec<f64>> {
             continue;
         }
         let q: Vec<usize> = (0..d).filter(|&r| mask >> r & 1 == 1).collect();
-        // Orthonormalize the span restricted to those axes (modified Gram-Schmidt, twice).
+        // An orthonormal basis of the span restricted to those axes.
         let mut basis: Vec<Vec<f64>> = Vec::new();
-        let mut full_rank = true;
         for v in span {
             let mut w: Vec<f64> = q.iter().map(|&r| v[r]).collect();
-            let norm0 = w.iter().map(|x| x * x).sum::<f64>().sqrt();
-            for _ in 0..2 {
-                for b in &basis {
-                    let dot: f64 = w.iter().zip(b).map(|(x, y)| x * y).sum();
-                    w.iter_mut().zip(b).for_each(|(x, y)| *x -= dot * y);
-                }
-            }
-            let norm = w.iter().map(|x| x * x).sum::<f64>().sqrt();
-            if norm <= 1e-10 * norm0.max(f64::MIN_POSITIVE) {
-                full_rank = false;
+            let before = norm(&w);
+            orthogonalize(&mut w, &basis);
+            let after = norm(&w);
+            if after <= 1e-10 * before.max(f64::MIN_POSITIVE) {
                 break;
             }
-            basis.push(w.iter().map(|x| x / norm).collect());
+            basis.push(w.iter().map(|x| x / after).collect());
         }
-        if !full_rank {
+        if basis.len() < j {
             continue;
         }
         // The direction left: the axis vector with the largest residual, projected.
-        let mut best: Option<(f64, Vec<f64>)> = None;
-        for t in 0..=j {
-            let mut w = vec![0.0; j + 1];
-            w[t] = 1.0;
-            for _ in 0..2 {
-                for b in &basis {
-                    let dot: f64 = w.iter().zip(b).map(|(x, y)| x * y).sum();
-                    w.iter_mut().zip(b).for_each(|(x, y)| *x -= dot * y);
+        let (size, w) = (0..=j)
+            .map(|t| {
+                let mut w = vec![0.0; j + 1];
+                w[t] = 1.0;
+                orthogonalize(&mut w, &basis);
+                (norm(&w), w)
+            })
+            .fold((f64::NEG_INFINITY, Vec::new()), |best, c| {
+                if c.0 > best.0 {
+                    c
+                } else {
+                    best
                 }
-            }
-            let norm = w.iter().map(|x| x * x).sum::<f64>().sqrt();
-            if best.as_ref().is_none_or(|(m, _)| norm > *m) {
-                best = Some((norm, w));
-            }
-        }
-        let (norm, w) = best.expect("j + 1 >= 1 candidates");
+            });
         let mut n = vec![0.0; d];
         for (&r, x) in q.iter().zip(&w) {
-            n[r] = x / norm;
+            n[r] = x / size;
         }
         out.push(n);
     }
     out
+}
+
+/// Removes from `w` its components along the orthonormal `basis` (modified Gram-Schmidt,
+/// twice for accuracy).
+fn orthogonalize(w: &mut [f64], basis: &[Vec<f64>]) {
+    for _ in 0..2 {
+        for b in basis {
+            let dot: f64 = w.iter().zip(b).map(|(x, y)| x * y).sum();
+            w.iter_mut().zip(b).for_each(|(x, y)| *x -= dot * y);
+        }
+    }
+}
+
+/// The Euclidean norm.
+fn norm(w: &[f64]) -> f64 {
+    w.iter().map(|x| x * x).sum::<f64>().sqrt()
 }

@@ -627,21 +627,25 @@ fn firsts<const W: usize>(cands: &[Candidate<W>]) -> impl Iterator<Item = &Candi
         .map(|(_, c)| c)
 }
 
-/// The vertex-cache rows (`n` each) of candidates; `rows` holds the frontier's.
+/// Vertex t of candidate c's cofacet tau, as a cache index: tau's row is the frontier
+/// simplex's (`n` of `rows`) with the new vertex inserted at `apex_at`.
+fn tau_vertex<const W: usize>(c: &Candidate<W>, rows: &[u32], n: usize, t: usize) -> u32 {
+    let sigma = &rows[c.from as usize * n..(c.from as usize + 1) * n];
+    match t.cmp(&(c.apex_at as usize)) {
+        std::cmp::Ordering::Less => sigma[t],
+        std::cmp::Ordering::Equal => c.apex,
+        std::cmp::Ordering::Greater => sigma[t - 1],
+    }
+}
+
+/// The vertex-cache rows (`n` each) of candidates: their tau without its vertex `drop`;
+/// `rows` holds the frontier's.
 fn cand_rows<const W: usize>(cands: &[&Candidate<W>], rows: &[u32], n: usize) -> Vec<u32> {
     let mut out = vec![0u32; cands.len() * n];
     for (c, row) in cands.iter().zip(out.chunks_exact_mut(n)) {
-        // Tau's row is sigma's with the new vertex inserted at apex_at; the facet drops
-        // tau's vertex `drop`.
-        let sigma = &rows[c.from as usize * n..(c.from as usize + 1) * n];
-        let (p, q) = (c.apex_at as usize, c.drop as usize);
-        let tau = |t: usize| match t.cmp(&p) {
-            std::cmp::Ordering::Less => sigma[t],
-            std::cmp::Ordering::Equal => c.apex,
-            std::cmp::Ordering::Greater => sigma[t - 1],
-        };
-        for (o, t) in row.iter_mut().zip((0..=n).filter(|&t| t != q)) {
-            *o = tau(t);
+        let kept = (0..=n).filter(|&t| t != c.drop as usize);
+        for (o, t) in row.iter_mut().zip(kept) {
+            *o = tau_vertex(c, rows, n, t);
         }
     }
     out
@@ -656,14 +660,7 @@ fn backs<const W: usize>(cands: &[Candidate<W>], rows: &[u32], n: usize) -> Back
         if i > 0 && cands[i - 1].key != c.key {
             back.end.push(back.vertices.len() as u32);
         }
-        let sigma = &rows[c.from as usize * n..(c.from as usize + 1) * n];
-        let q = c.drop as usize;
-        let p = c.apex_at as usize;
-        back.vertices.push(match q.cmp(&p) {
-            std::cmp::Ordering::Less => sigma[q],
-            std::cmp::Ordering::Equal => c.apex,
-            std::cmp::Ordering::Greater => sigma[q - 1],
-        });
+        back.vertices.push(tau_vertex(c, rows, n, c.drop as usize));
     }
     if !cands.is_empty() {
         back.end.push(back.vertices.len() as u32);
@@ -726,15 +723,14 @@ impl<const W: usize> Taken<W> {
             .map(|i| (self.keys[i], i as u32))
             .collect();
         order.sort();
-        let rows_of = |v: &[u32], i: u32| {
-            let i = i as usize;
-            v[i * n..(i + 1) * n].to_vec()
-        };
         Decided {
             keys: order.iter().map(|o| o.0).collect(),
             rows: order
                 .iter()
-                .flat_map(|o| rows_of(&self.rows, o.1))
+                .flat_map(|o| {
+                    let i = o.1 as usize;
+                    self.rows[i * n..(i + 1) * n].iter().copied()
+                })
                 .collect(),
             verdicts: Verdicts {
                 status: order.iter().map(|o| self.status[o.1 as usize]).collect(),
