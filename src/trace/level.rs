@@ -723,24 +723,19 @@ impl<const W: usize> Taken<W> {
             .map(|i| (self.keys[i], i as u32))
             .collect();
         order.sort();
-        Decided {
-            keys: order.iter().map(|o| o.0).collect(),
-            rows: order
+        /// The entries of `v` (n per key) in `order`.
+        fn gather<T: Copy>(v: &[T], order: &[(impl Sized, u32)], n: usize) -> Vec<T> {
+            order
                 .iter()
-                .flat_map(|o| {
-                    let i = o.1 as usize;
-                    self.rows[i * n..(i + 1) * n].iter().copied()
-                })
-                .collect(),
+                .flat_map(|o| v[o.1 as usize * n..(o.1 as usize + 1) * n].iter().copied())
+                .collect()
+        }
+        Decided {
+            keys: gather(&self.keys, &order, 1),
+            rows: gather(&self.rows, &order, n),
             verdicts: Verdicts {
-                status: order.iter().map(|o| self.status[o.1 as usize]).collect(),
-                lambda: order
-                    .iter()
-                    .flat_map(|o| {
-                        let i = o.1 as usize;
-                        self.lambda[i * n..(i + 1) * n].iter().copied()
-                    })
-                    .collect(),
+                status: gather(&self.status, &order, 1),
+                lambda: gather(&self.lambda, &order, n),
             },
             back,
         }
