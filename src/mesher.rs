@@ -379,7 +379,9 @@ impl Mesher {
             backend,
             threads: rayon::current_num_threads(),
             peak_memory_bytes: peak,
+            max_memory_bytes: self.max_memory,
             suspect_crossings: sample.suspect_crossings(f),
+            singular_seeds: Vec::new(),
         };
         Ok(Manifold {
             function: self.function.clone(),

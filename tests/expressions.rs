@@ -436,7 +436,7 @@ offset_seed = 1
     ));
     assert!(matches!(
         bad("ambient_dim = 3\nequations = [\"x^2 + y^2 + z^2 - 1\", \"x^2 + q\"]\n"),
-        Err(Error::Parse(e)) if e.kind == ErrorKind::UnknownName && e.line == 2 && e.column == 7
+        Err(Error::Parse(e)) if e.kind == ErrorKind::UnknownName && e.line == 2 && e.column == 44
     ));
     assert!(matches!(
         bad("ambient_dim = 2\nequations = [\"x\", \"y\"]\n"),
