@@ -60,10 +60,11 @@ pub struct Decider {
     abs_l: Vec<f64>,
 }
 
-/// Safety factor on the first-order error bound, per unit of n.
-const BOUND_FACTOR: f64 = 16.0;
-/// Largest unit * cond(L) for which the first-order bound is trusted.
-const MAX_RELATIVE_BOUND: f64 = 0.125;
+/// Safety factor on the first-order error bound, per unit of n (the solve shader's too).
+pub(crate) const BOUND_FACTOR: f64 = 16.0;
+/// Largest unit * cond(L) for which the first-order bound is trusted (the solve shader's
+/// too).
+pub(crate) const MAX_RELATIVE_BOUND: f64 = 0.125;
 
 impl Decider {
     /// Work space for k-simplices (k equations).

@@ -1,0 +1,262 @@
+//! The solve stage (`shaders/solve.wgsl`): the intersection test's (k+1)x(k+1) solves, the
+//! twin of the CPU fast path [`Decider::fast_path`](crate::cpu::decide::Decider::fast_path).
+//! A decision batch goes through in pipelined chunks; what the shader's bound does not
+//! certify is decided again on the CPU.
+
+use std::ops::Range;
+use std::sync::atomic::Ordering;
+use std::time::Instant;
+
+use rayon::prelude::*;
+
+use super::device::{add_time, Stage};
+use super::GpuOracle;
+use crate::cpu::decide::{filter_verdict, scaled_rows, Status, BOUND_FACTOR, MAX_RELATIVE_BOUND};
+use crate::error::Result;
+use crate::gpu::wgsl::{validate, Precision};
+use crate::trace::{CpuOracle, Oracle};
+
+/// The solve shader, before its prelude.
+pub const SOLVE_WGSL: &str = include_str!("../../../shaders/solve.wgsl");
+/// Simplices per pipelined chunk of a decision batch.
+const PIPELINE_CHUNK: usize = 1 << 17;
+/// Shader verdicts.
+const CROSSED: u32 = 0;
+const OUTSIDE: u32 = 1;
+
+/// The solve shader for k-simplices in precision `p`, validated by naga.
+pub fn solve_shader(k: usize, p: Precision) -> Result<String> {
+    let n = k + 1;
+    let (eps, big) = match p {
+        Precision::F32 => ("1.1920929e-7f", "3.4028235e38f"),
+        Precision::F64 => ("2.220446049250313e-16lf", "1.7976931348623157e308lf"),
+    };
+    let lit = |v: f64| match p {
+        Precision::F32 => format!("{v:?}f"),
+        Precision::F64 => format!("{v:?}lf"),
+    };
+    let src = format!(
+        "alias real = {ty};\nconst N: u32 = {n}u;\nconst NN: u32 = {nn}u;\nconst EPS: real = {eps};\n\
+         const BOUND: real = {bound};\nconst BIG: real = {big};\n\
+         const MAX_RELATIVE_BOUND: real = {rel};\n{SOLVE_WGSL}",
+        bound = lit(BOUND_FACTOR),
+        rel = lit(MAX_RELATIVE_BOUND),
+        ty = p.ty(),
+        nn = n * n
+    );
+    validate(&src, p)?;
+    Ok(src)
+}
+
+impl GpuOracle<'_> {
+    /// The solve shader on `m` simplices given as packed scaled rows (k rows of k + 1 each):
+    /// per simplex a verdict (0 crossed, 1 outside, 2 uncertain) and lambda.
+    fn solve_packed(&self, packed: &[f64], m: usize) -> Result<(Vec<u32>, Vec<f64>)> {
+        let n = self.k + 1;
+        let per = self.k * n;
+        let rs = self.real_size();
+        let chunk = self.chunk(rs * per);
+        let mut flags = Vec::with_capacity(m);
+        let mut lam = Vec::with_capacity(m * n);
+        for part in packed.chunks(chunk * per) {
+            let c = part.len() / per;
+            let pending = self.submit(
+                Stage::Solve,
+                &self.solve,
+                &self.encode_reals(part),
+                c,
+                &[c * n * rs, c * 4],
+                false,
+            )?;
+            let res = self.finish(pending)?;
+            lam.extend(self.decode_reals(&res[0]));
+            flags.extend(bytemuck::pod_collect_to_vec::<u8, u32>(&res[1]));
+        }
+        Ok((flags, lam))
+    }
+
+    #[doc(hidden)] // a stage alone, for tests and benchmarks
+    /// The shader stage alone, the twin of [`Decider::fast_path`](crate::cpu::decide::Decider::fast_path): for each simplex (rows of
+    /// vertex indices into `values`, as in [`Oracle::decide`]), the shader's verdict as the
+    /// fast path's `Option<Status>` (None: uncertain), and lambda. No host filter runs first.
+    pub fn solve_stage(
+        &self,
+        values: &[f64],
+        simplices: &[u32],
+    ) -> Result<(Vec<Option<Status>>, Vec<f64>)> {
+        let (k, n) = (self.k, self.k + 1);
+        let m = simplices.len() / n;
+        let mut packed = vec![0.0; m * k * n];
+        packed
+            .par_chunks_mut(k * n)
+            .zip(simplices.par_chunks(n))
+            .for_each(|(r, idx)| scaled_rows(k, |j, c| values[idx[j] as usize * k + c], r));
+        let (flags, lam) = self.solve_packed(&packed, m)?;
+        let verdicts = flags
+            .iter()
+            .map(|&f| match f {
+                CROSSED => Some(Status::Crossed),
+                OUTSIDE => Some(Status::Outside),
+                _ => None,
+            })
+            .collect();
+        Ok((verdicts, lam))
+    }
+    /// Decides a batch: while the device solves chunk c, the host packs chunk c + 1 and
+    /// settles chunk c - 1 (keeps certified verdicts, re-decides the rest on the CPU).
+    pub(super) fn decide_pipelined(
+        &self,
+        values: &[f64],
+        simplices: &[u32],
+        status: &mut [Status],
+        lambda: &mut [f64],
+    ) -> Result<u64> {
+        let n = self.k + 1;
+        let rs = self.real_size();
+        let chunk = self.chunk(rs * self.k * n).min(PIPELINE_CHUNK);
+        let ranges: Vec<Range<usize>> = (0..status.len())
+            .step_by(chunk)
+            .map(|s| s..(s + chunk).min(status.len()))
+            .collect();
+        // A pipeline: while the device solves chunk c, the host packs chunk c + 1 and
+        // settles chunk c - 1 (keeps certified verdicts, re-decides the rest on the CPU).
+        let mut exact = 0;
+        let mut next = ranges
+            .first()
+            .map(|r| self.prepare(values, simplices, r.clone(), status));
+        let mut solved: Option<(Vec<usize>, Vec<Vec<u8>>)> = None;
+        for c in 0..ranges.len() {
+            let (sent, bytes) = next
+                .take()
+                .expect("each chunk is prepared before it is sent");
+            let outputs = [sent.len() * n * rs, sent.len() * 4];
+            let mut pending = if sent.is_empty() {
+                None
+            } else {
+                Some(self.submit(
+                    Stage::Solve,
+                    &self.solve,
+                    &bytes,
+                    sent.len(),
+                    &outputs,
+                    false,
+                )?)
+            };
+            let mut early = None;
+            if self.phased.load(Ordering::Relaxed) {
+                early = pending.take().map(|p| self.finish(p)).transpose()?;
+            }
+            if let Some(r) = ranges.get(c + 1) {
+                next = Some(self.prepare(values, simplices, r.clone(), status));
+            }
+            if let Some((prev, res)) = solved.take() {
+                exact += self.settle(values, simplices, &prev, &res, status, lambda)?;
+            }
+            let res = match (early, pending) {
+                (Some(res), _) => res,
+                (None, Some(p)) => self.finish(p)?,
+                (None, None) => vec![Vec::new(), Vec::new()],
+            };
+            self.solved.fetch_add(sent.len() as u64, Ordering::Relaxed);
+            solved = Some((sent, res));
+        }
+        if let Some((prev, res)) = solved {
+            exact += self.settle(values, simplices, &prev, &res, status, lambda)?;
+        }
+        Ok(exact)
+    }
+}
+
+impl GpuOracle<'_> {
+    /// Host side before the shader, for the simplices in `range`: the CPU's cheap filters
+    /// (their verdicts go straight into `status`), then the scaled rows of L for the rest,
+    /// encoded for upload. Returns the indices sent and the bytes.
+    fn prepare(
+        &self,
+        values: &[f64],
+        simplices: &[u32],
+        range: Range<usize>,
+        status: &mut [Status],
+    ) -> (Vec<usize>, Vec<u8>) {
+        let started = Instant::now();
+        let (k, n) = (self.k, self.k + 1);
+        let val =
+            |i: usize| move |j: usize, c: usize| values[simplices[i * n + j] as usize * k + c];
+        let start = range.start;
+        let pre: Vec<Option<Status>> = range
+            .into_par_iter()
+            .map(|i| filter_verdict(k, val(i)))
+            .collect();
+        let mut sent = Vec::new();
+        for (o, p) in pre.iter().enumerate() {
+            match p {
+                Some(s) => status[start + o] = *s,
+                None => sent.push(start + o),
+            }
+        }
+        let mut packed = vec![0.0; sent.len() * k * n];
+        packed
+            .par_chunks_mut(k * n)
+            .zip(&sent)
+            .for_each(|(r, &i)| scaled_rows(k, val(i), r));
+        let bytes = self.encode_reals(&packed);
+        add_time(&self.host_ns, started);
+        (sent, bytes)
+    }
+
+    /// Host side after the shader: keeps what the bound certifies and decides the rest of
+    /// `sent` on the CPU, in one gathered batch. Returns the count of exact decisions.
+    fn settle(
+        &self,
+        values: &[f64],
+        simplices: &[u32],
+        sent: &[usize],
+        res: &[Vec<u8>],
+        status: &mut [Status],
+        lambda: &mut [f64],
+    ) -> Result<u64> {
+        let started = Instant::now();
+        let n = self.k + 1;
+        let lam = self.decode_reals(&res[0]);
+        let flags: Vec<u32> = bytemuck::pod_collect_to_vec(&res[1]);
+        let keep_crossed = self.precision == Precision::F64;
+        let recheck: Vec<usize> = sent
+            .iter()
+            .enumerate()
+            .filter_map(|(j, &i)| match flags[j] {
+                OUTSIDE => {
+                    status[i] = Status::Outside;
+                    None
+                }
+                CROSSED if keep_crossed => {
+                    status[i] = Status::Crossed;
+                    lambda[i * n..(i + 1) * n].copy_from_slice(&lam[j * n..(j + 1) * n]);
+                    None
+                }
+                _ => Some(i),
+            })
+            .collect();
+        self.rechecked
+            .fetch_add(recheck.len() as u64, Ordering::Relaxed);
+        let sub: Vec<u32> = recheck
+            .iter()
+            .flat_map(|&i| simplices[i * n..(i + 1) * n].iter().copied())
+            .collect();
+        let mut sub_status = vec![Status::Outside; recheck.len()];
+        let mut sub_lambda = vec![0.0; recheck.len() * n];
+        let exact =
+            CpuOracle::new(self.f).decide(values, &sub, &mut sub_status, &mut sub_lambda)?;
+        for ((&i, &s), l) in recheck
+            .iter()
+            .zip(&sub_status)
+            .zip(sub_lambda.chunks_exact(n))
+        {
+            status[i] = s;
+            if s.crossed() {
+                lambda[i * n..(i + 1) * n].copy_from_slice(l);
+            }
+        }
+        add_time(&self.host_ns, started);
+        Ok(exact)
+    }
+}
