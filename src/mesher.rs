@@ -13,8 +13,8 @@
 //! # Ok::<(), isomesh::Error>(())
 //! ```
 //!
-//! The layers below ([`trace::trace`](crate::trace::trace), [`Complex`],
-//! [`export`](crate::export)) stay public for callers that need them.
+//! The layers below ([`trace::trace`], [`Complex`],
+//! [`export`](crate::export)) stay public for callers who need them.
 
 use std::path::Path;
 use std::sync::atomic::AtomicBool;
