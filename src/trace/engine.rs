@@ -80,7 +80,10 @@ impl<'a, const W: usize> Engine<'a, W> {
             } else {
                 0
             };
-        let need = crate::memory::in_use(self.bytes()) + (next_bytes + growth) as u64;
+        // After the trace, the sample copies the vertex set, and its check for poles holds
+        // two values per simplex and equation: room for them is kept.
+        let after = self.verts.bytes() + 2 * (self.s.len() + new_keys) * self.ctx.k * 8;
+        let need = crate::memory::in_use(self.bytes()) + (next_bytes + growth + after) as u64;
         if need > self.ctx.max_memory {
             self.stats.stopped = Some(StopReason::MemoryLimit {
                 needed: need,
