@@ -120,10 +120,10 @@ impl std::fmt::Display for StopReason {
             StopReason::Interrupted => write!(f, "interrupted"),
             StopReason::MemoryLimit { needed, limit } => write!(
                 f,
-                "stopped before passing the memory limit: the next level needs {:.2} GiB, the \
-                 limit is {:.2} GiB (raise --max-memory, or use a larger edge or a smaller box)",
-                *needed as f64 / (1u64 << 30) as f64,
-                *limit as f64 / (1u64 << 30) as f64
+                "stopped before passing the memory limit: the next level needs {}, the limit \
+                 is {} (raise --max-memory, or use a larger edge or a smaller box)",
+                crate::memory::human_bytes(*needed),
+                crate::memory::human_bytes(*limit)
             ),
         }
     }
