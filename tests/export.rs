@@ -459,6 +459,12 @@ fn le_f64(b: &[u8]) -> Vec<f64> {
         .collect()
 }
 
+fn le_i32(b: &[u8]) -> Vec<f64> {
+    b.chunks_exact(4)
+        .map(|c| i32::from_le_bytes(c.try_into().unwrap()) as f64)
+        .collect()
+}
+
 fn le_i64(b: &[u8]) -> Vec<f64> {
     b.chunks_exact(8)
         .map(|c| i64::from_le_bytes(c.try_into().unwrap()) as f64)
@@ -534,9 +540,10 @@ fn binary_ply_and_vtu_read_back_as_their_ascii_forms() {
             assert_eq!(arrays[k].0, "Float64", "{name} {k}");
             le_f64(&arrays[k].1)
         };
-        let i64s = |k: &str| {
-            assert_eq!(arrays[k].0, "Int64", "{name} {k}");
-            le_i64(&arrays[k].1)
+        let i64s = |k: &str| match arrays[k].0.as_str() {
+            "Int64" => le_i64(&arrays[k].1),
+            "Int32" => le_i32(&arrays[k].1),
+            t => panic!("{name} {k}: {t}"),
         };
         let u8s = |k: &str| -> Vec<f64> {
             assert_eq!(arrays[k].0, "UInt8", "{name} {k}");

@@ -513,15 +513,28 @@ fn vtu_binary(w: &mut impl Write, mesh: &Mesh) -> io::Result<()> {
         _ => (10, mesh.tetrahedra.iter().map(|t| &t[..]).collect()),
     };
     let links: usize = cells.iter().map(|c| c.len()).sum();
+    // Indices as Int32 where they fit (half the size), else Int64.
+    let (int, width) = if links < i32::MAX as usize {
+        ("Int32", 4)
+    } else {
+        ("Int64", 8)
+    };
     // (type, name, components, bytes) of each array, in file order.
     let arrays: [(&str, &str, usize, usize); 6] = [
         ("Float64", "coordinates", d, 8 * n * d),
         ("UInt8", "boundary", 1, n),
         ("Float64", "", 3, 8 * n * 3),
-        ("Int64", "connectivity", 1, 8 * links),
-        ("Int64", "offsets", 1, 8 * cells.len()),
+        (int, "connectivity", 1, width * links),
+        (int, "offsets", 1, width * cells.len()),
         ("UInt8", "types", 1, cells.len()),
     ];
+    let index = |w: &mut dyn Write, v: i64| {
+        if width == 4 {
+            w.write_all(&(v as i32).to_le_bytes())
+        } else {
+            w.write_all(&v.to_le_bytes())
+        }
+    };
     let mut offset = 0;
     let mut tag = |i: usize| {
         let (ty, name, comps, bytes) = arrays[i];
@@ -572,14 +585,14 @@ fn vtu_binary(w: &mut impl Write, mesh: &Mesh) -> io::Result<()> {
     size(w, 3)?;
     for cell in &cells {
         for &v in *cell {
-            w.write_all(&i64::from(v).to_le_bytes())?;
+            index(w, i64::from(v))?;
         }
     }
     size(w, 4)?;
     let mut end = 0i64;
     for cell in &cells {
         end += cell.len() as i64;
-        w.write_all(&end.to_le_bytes())?;
+        index(w, end)?;
     }
     size(w, 5)?;
     w.write_all(&vec![kind; cells.len()])?;
