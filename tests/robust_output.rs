@@ -175,7 +175,7 @@ fn concurrent_runs_on_one_out_each_write_a_whole_file() {
             .collect();
         assert_ne!(own[0], own[1]);
         assert!(
-            own.iter().any(|o| *o == same),
+            own.contains(&same),
             "round {round}: same.csv is no run's sample"
         );
         assert!(dir.partials().is_empty(), "{:?}", dir.partials());

@@ -18,10 +18,10 @@ use isomesh::export::{
 use isomesh::expr::{ImplicitFunction, Problem};
 use isomesh::gpu::{Gpu, GpuOracle, Precision};
 use isomesh::memory;
+use isomesh::report::{BackendInfo, ComplexReport, Report, RunInfo};
 use isomesh::trace::{exhaustive, trace, CpuOracle, Oracle, Progress, TraceOptions};
 use isomesh::triangulation::TriangulationKind;
 use isomesh::{Error, Result};
-use serde_json::json;
 
 use super::text::{num, say, shown};
 use super::{load, signals};
@@ -277,14 +277,33 @@ fn box_from_flag(v: &[f64], d: usize) -> Result<Vec<[f64; 2]>> {
     }
 }
 
+/// Most worker threads per core `--threads` may ask for.
+const MAX_THREADS_PER_CORE: usize = 4;
+/// Most worker threads in all.
+const MAX_THREADS: usize = 1024;
+
+/// The most worker threads a trace runs.
+fn max_threads() -> usize {
+    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+    (cores * MAX_THREADS_PER_CORE).min(MAX_THREADS)
+}
+
 /// Runs `isomesh trace` with `args`.
 pub fn run(args: &TraceArgs) -> Result<()> {
     let mut problem = load(args.spec.clone(), args.preset.clone(), &args.params)?;
     apply_flags(&mut problem, args)?;
     let plan = plan_outputs(args, &problem)?;
-    let threads = args.threads.unwrap_or_else(rayon::current_num_threads);
+    let mut threads = args.threads.unwrap_or_else(rayon::current_num_threads);
     if threads == 0 {
         return Err(Error::Spec("--threads must be at least 1".into()));
+    }
+    let cap = max_threads();
+    if threads > cap {
+        eprintln!(
+            "warning: --threads {threads} is more than this machine can use: running {cap} \
+             (at most {MAX_THREADS_PER_CORE} per core, and at most {MAX_THREADS})"
+        );
+        threads = cap;
     }
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(threads)
@@ -475,7 +494,6 @@ fn run_in_pool(p: &Problem, args: &TraceArgs, plan: &Plan, threads: usize) -> Re
         Some(o) => o,
         None => &cpu_oracle,
     };
-    let backend = oracle.name();
     let cancel = signals::stop_flag();
     let stopping = || cancel.load(Ordering::SeqCst);
     let bar = progress_bar(args.quiet);
@@ -510,9 +528,12 @@ fn run_in_pool(p: &Problem, args: &TraceArgs, plan: &Plan, threads: usize) -> Re
         max_memory: args.max_memory.unwrap_or_else(memory::default_limit),
         cancel: Some(cancel.clone()),
         progress: Some(&report_progress),
+        warm: true,
         ..TraceOptions::default()
     };
-    memory::reset_peak();
+    let limit = opts.max_memory;
+    check_not_zero(p, &tri)?;
+    let singular_seeds = singular_seeds(p, tri.edge(), args.quiet);
     let base = memory::live_bytes();
     let sample = if args.exhaustive {
         phase("scan: evaluating f on the box's lattice, then deciding its simplices");
@@ -535,7 +556,7 @@ fn run_in_pool(p: &Problem, args: &TraceArgs, plan: &Plan, threads: usize) -> Re
         ));
         trace(sys, &tri, oracle, &opts)?
     };
-    let peak = memory::peak_bytes().saturating_sub(base);
+    let trace_peak = memory::peak_bytes().saturating_sub(base);
     bar.finish_and_clear();
     let suspect = sample.suspect_crossings(sys);
     if suspect > 0 {
@@ -571,7 +592,6 @@ fn run_in_pool(p: &Problem, args: &TraceArgs, plan: &Plan, threads: usize) -> Re
     let complex = if args.no_complex || sample.is_empty() || stopping() {
         None
     } else {
-        let limit = args.max_memory.unwrap_or_else(memory::default_limit);
         phase("complex: building the cell complex");
         match Complex::build_cancellable(&sample, sys, p.bbox.as_deref(), limit, &cancel) {
             Ok(c) => {
@@ -589,13 +609,16 @@ fn run_in_pool(p: &Problem, args: &TraceArgs, plan: &Plan, threads: usize) -> Re
         }
     };
     if let (Some((c, topo, _)), true) = (&complex, wants_mesh) {
-        let mesh = Mesh::new(c, Some(sys), projection, &p.name);
         let encoding = if args.ascii {
             Encoding::Ascii
         } else {
             Encoding::Binary
         };
         let mut write = || -> Result<()> {
+            // Vertices in R^3 and the polygons as triangles, generously.
+            let cells: usize = topo.cells.iter().sum();
+            check_memory("the mesh", 48 * topo.cells[0] + 64 * cells, limit)?;
+            let mesh = Mesh::new(c, Some(sys), projection, &p.name);
             // A signal lets the file being written finish, and skips the rest.
             for o in &plan.outs {
                 if let (Output::Mesh(format), false) = (&o.kind, stopping()) {
@@ -607,6 +630,7 @@ fn run_in_pool(p: &Problem, args: &TraceArgs, plan: &Plan, threads: usize) -> Re
             if let (Some(path), false) = (&args.png, stopping()) {
                 phase(&format!("writing {}", shown(&path.display().to_string())));
                 let (w, h) = args.png_size;
+                check_memory("the picture", w.saturating_mul(h).saturating_mul(16), limit)?;
                 let pic = Picture::render(&mesh, w, h, &caption(&p.name, d, topo))?;
                 pic.write_png(path)?;
                 written.push(path.clone());
@@ -619,6 +643,15 @@ fn run_in_pool(p: &Problem, args: &TraceArgs, plan: &Plan, threads: usize) -> Re
     }
     let st = &sample.stats;
     let n = sample.len();
+    let peak = memory::peak_bytes();
+    let empty = (n == 0 && st.stopped.is_none()).then(|| empty_reason(st, args));
+    let not_written: Vec<String> = args
+        .out
+        .iter()
+        .chain(&args.png)
+        .filter(|f| f.as_os_str() != "-" && !written.contains(f))
+        .map(|f| f.display().to_string())
+        .collect();
     let per_s = if st.elapsed_s > 0.0 {
         n as f64 / st.elapsed_s
     } else {
@@ -626,75 +659,41 @@ fn run_in_pool(p: &Problem, args: &TraceArgs, plan: &Plan, threads: usize) -> Re
     };
     let signal = signals::received();
     if let Some(path) = &args.report {
-        let report = json!({
-            "name": p.name,
-            "mode": if args.exhaustive { "exhaustive" } else { "trace" },
-            "ambient_dim": d,
-            "codim": k,
-            "manifold_dim": d - k,
-            "triangulation": tri.kind().name(),
-            "edge": tri.edge(),
-            "offset": tri.offset(),
-            "box": p.bbox,
-            "simplex_count": n,
-            "components": complex.as_ref().map_or(st.components, |c| c.1.components),
-            "backend": backend,
-            "precision": gpu_oracle.as_ref().map_or("f64", |o| o.precision().ty()),
-            "recheck_share": gpu_oracle.as_ref().map(|o| {
-                let st = o.stats();
-                if st.solved > 0 { st.rechecked as f64 / st.solved as f64 } else { 0.0 }
-            }),
-            "gpu_s": gpu_oracle.as_ref().map(|o| o.stats().gpu_s),
-            "adapter": gpu_oracle.as_ref().map(|o| o.gpu().adapter.clone()),
-            "threads": threads,
-            "elapsed_s": st.elapsed_s,
-            "simplices_per_s": per_s,
-            "peak_memory_bytes": peak,
-            "bytes_per_simplex": if n > 0 { peak as f64 / n as f64 } else { 0.0 },
-            "levels": st.levels,
-            "widest_level": st.widest_level,
-            "oracle_calls": st.oracle_calls,
-            "exact_decisions": st.exact_decisions,
-            "pivot_fallbacks": st.pivot_fallbacks,
-            "degenerate": st.degenerate,
-            "non_finite": st.non_finite,
-            "vertices_evaluated": st.vertices,
-            "seed_points": st.seed_points,
-            "suspect_crossings": suspect,
-            "complete": st.stopped.is_none() && signal.is_none(),
-            "stopped": st.stopped.as_ref().map(|s| s.to_string())
-                .or(signal.map(|_| "interrupted".to_string())),
-            "signal": signal.map(signals::name),
-            "error": failure.as_ref().map(|e| e.to_string()),
-        });
-        let mut report = report;
+        let backend = match &gpu_oracle {
+            Some(o) => BackendInfo::of_gpu(o),
+            None => BackendInfo::cpu(),
+        };
+        let run = RunInfo {
+            name: p.name.clone(),
+            exhaustive: args.exhaustive,
+            bbox: p.bbox.clone(),
+            backend,
+            threads,
+            peak_memory_bytes: peak as u64,
+            max_memory_bytes: limit,
+            suspect_crossings: suspect,
+            singular_seeds,
+        };
+        let mut report = Report::new(&sample, run);
+        report.error = failure
+            .as_ref()
+            .map(|e| e.to_string())
+            .or_else(|| empty.clone());
+        report.complete &= failure.is_none() && empty.is_none();
+        report.not_written = not_written.clone();
+        if let Some(sig) = signal {
+            report.complete = false;
+            report.stopped.get_or_insert_with(|| "interrupted".into());
+            report.signal = Some(signals::name(sig));
+        }
         if let Some((c, t, topo_s)) = &complex {
-            let extra = json!({
-                "cells": t.cells,
-                "euler_characteristic": t.euler_characteristic,
-                "manifold": t.manifold,
-                "closed": t.closed,
-                "boundary_cells": t.boundary_cells,
-                "boundary_euler_characteristic": t.boundary_euler_characteristic,
-                "orientable": t.orientable,
-                "betti_mod2": t.betti_mod2,
-                "closed_components": t.closed_components,
-                "offender_count": t.offender_count,
-                "offenders": t.offenders,
-                "defects": t.defects,
-                "complex_s": c.stats.elapsed_s,
-                "topology_s": topo_s,
-                "projection": args.project,
-            });
-            if let (Some(r), Some(e)) = (report.as_object_mut(), extra.as_object()) {
-                r.extend(e.clone());
-            }
+            report = report.with_complex(
+                ComplexReport::new(c, t, *topo_s, &args.project),
+                t.components,
+            );
         }
         phase(&format!("writing {}", shown(&path.display().to_string())));
-        write_atomic(path, |w| {
-            serde_json::to_writer_pretty(&mut *w, &report).map_err(std::io::Error::other)?;
-            writeln!(w)
-        })?;
+        write_atomic(path, |w| writeln!(w, "{}", report.to_json()))?;
         written.push(path.clone());
     }
     if !args.quiet {
@@ -719,8 +718,12 @@ fn run_in_pool(p: &Problem, args: &TraceArgs, plan: &Plan, threads: usize) -> Re
             st.elapsed_s,
             per_s,
             if threads == 1 { "" } else { "s" },
-            memory::human_bytes(peak as u64),
-            if n > 0 { peak as f64 / n as f64 } else { 0.0 },
+            memory::human_bytes(trace_peak as u64),
+            if n > 0 {
+                trace_peak as f64 / n as f64
+            } else {
+                0.0
+            },
         ));
         if let Some((c, t, topo_s)) = &complex {
             line(summary(t, c.stats.elapsed_s + topo_s));
@@ -729,9 +732,14 @@ fn run_in_pool(p: &Problem, args: &TraceArgs, plan: &Plan, threads: usize) -> Re
             line(format!("wrote {}", shown(&f.display().to_string())));
         }
     }
+    let unwritten = if not_written.is_empty() {
+        String::new()
+    } else {
+        format!("; not written: {}", not_written.join(", "))
+    };
     let kept = |n: usize| {
         format!(
-            "the {n} simplices found were kept{}",
+            "the {n} simplices found were kept{}{unwritten}",
             if written.is_empty() {
                 ""
             } else {
@@ -746,13 +754,123 @@ fn run_in_pool(p: &Problem, args: &TraceArgs, plan: &Plan, threads: usize) -> Re
             kept(n)
         )));
     }
+    if let Some(why) = empty {
+        return Err(Error::Trace(format!("{why}{unwritten}")));
+    }
     if let (Some(e), None) = (failure, &st.stopped) {
+        if !not_written.is_empty() {
+            eprintln!("not written: {}", not_written.join(", "));
+        }
         return Err(e);
     }
     if let Some(stop) = &st.stopped {
         return Err(Error::Trace(format!("{stop}; {}", kept(n))));
     }
     Ok(())
+}
+
+/// Fails when `extra` more heap bytes would pass `limit`.
+fn check_memory(what: &str, extra: usize, limit: u64) -> Result<()> {
+    let live = memory::in_use(0);
+    let need = live.saturating_add(extra as u64);
+    if need > limit {
+        return Err(Error::Trace(format!(
+            "{what} needs about {:.1} MiB on top of {:.1} MiB in use, over the memory limit of \
+             {:.1} MiB (raise --max-memory, or use a larger edge)",
+            extra as f64 / (1u64 << 20) as f64,
+            live as f64 / (1u64 << 20) as f64,
+            limit as f64 / (1u64 << 20) as f64
+        )));
+    }
+    Ok(())
+}
+
+/// Why a trace that found nothing found nothing.
+fn empty_reason(st: &isomesh::trace::TraceStats, args: &TraceArgs) -> String {
+    let why = if st.non_finite > 0 {
+        format!(
+            "f is NaN or infinite at {} of the points tried (non_finite in the report) and \
+             crosses 0 nowhere else",
+            st.non_finite
+        )
+    } else if st.seed_points == 0 && args.seeds.is_empty() {
+        "the seed search found no point of M in the box (f may have no zero there: give a \
+         seed, a larger --search or another box)"
+            .to_string()
+    } else {
+        "M was not met: f has no zero in the box at this edge (give a seed, a smaller edge or \
+         another box)"
+            .to_string()
+    };
+    format!("no crossed simplex was found: {why}")
+}
+
+/// Points where `p`'s equations are tried for being identically 0: 64 points of the box, or
+/// within 100 edges (at least a millionth of their size) of the seeds when there is no box
+/// (seeded, so the same each run).
+fn probe_points(p: &Problem, edge: f64) -> Vec<f64> {
+    use rand::{Rng, SeedableRng};
+    let d = p.dim();
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(7);
+    let mut pts = Vec::with_capacity(64 * d);
+    for i in 0..64 {
+        for c in 0..d {
+            let (lo, hi) = match (&p.bbox, p.seeds.get(i % p.seeds.len().max(1))) {
+                (Some(b), _) => (b[c][0], b[c][1]),
+                (None, Some(s)) => {
+                    // Wide enough to move every coordinate, however fine the edge.
+                    let r = (100.0 * edge).max(1e-6 * s[c].abs().max(1.0));
+                    (s[c] - r, s[c] + r)
+                }
+                (None, None) => return pts,
+            };
+            pts.push(rng.random_range(lo..=hi));
+        }
+    }
+    pts
+}
+
+/// Refuses an equation that is 0 at every probe point: its zero set is no manifold, and
+/// tracing it would report every simplex as degenerate.
+fn check_not_zero(p: &Problem, tri: &isomesh::triangulation::Triangulation) -> Result<()> {
+    let pts = probe_points(p, tri.edge());
+    match isomesh::expr::zero_equation_at(&p.system, &pts) {
+        Some(i) => Err(Error::Spec(format!(
+            "equation {} is 0 at all of {} points tried {}: it is identically 0 there, and its \
+             zero set is no manifold",
+            i + 1,
+            pts.len() / p.dim(),
+            if p.bbox.is_some() {
+                "in the box"
+            } else {
+                "around the seeds"
+            }
+        ))),
+        None => Ok(()),
+    }
+}
+
+/// The seeds (1-based) at which f's Jacobian is rank-deficient, each warned about.
+fn singular_seeds(p: &Problem, edge: f64, quiet: bool) -> Vec<usize> {
+    let mut out = Vec::new();
+    for (i, s) in p.seeds.iter().enumerate() {
+        let Ok(x) = isomesh::expr::newton_project(&p.system, s, isomesh::trace::SEED_TOLERANCE)
+        else {
+            continue;
+        };
+        if isomesh::expr::is_singular_at(&p.system, &x, edge) {
+            out.push(i + 1);
+            if !quiet {
+                eprintln!(
+                    "warning: seed {} projects to {x:?}, where the Jacobian of f is \
+                     rank-deficient (a crossing of branches, a cusp): the trace follows at most \
+                     one branch from there; move the seed off the singular point",
+                    i + 1
+                );
+            }
+        }
+    }
+    out
 }
 
 /// The caption of pictures.

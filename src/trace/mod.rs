@@ -70,6 +70,9 @@ pub struct TraceOptions<'a> {
     pub cancel: Option<Arc<AtomicBool>>,
     /// Called after every level.
     pub progress: Option<&'a (dyn Fn(&Progress) + Sync)>,
+    /// Keep the pool's other threads polling for work while the trace runs, so that small
+    /// levels use every core (they burn those cores meanwhile; the command line sets it).
+    pub warm: bool,
 }
 
 impl Default for TraceOptions<'_> {
@@ -82,6 +85,7 @@ impl Default for TraceOptions<'_> {
             max_memory: crate::memory::default_limit(),
             cancel: None,
             progress: None,
+            warm: false,
         }
     }
 }
@@ -100,7 +104,7 @@ pub struct Progress {
 }
 
 /// Why a trace stopped early (what it found is kept).
-#[derive(Clone, Debug, PartialEq, Eq, Serialize)]
+#[derive(Clone, Debug, PartialEq, Serialize)]
 #[serde(rename_all = "snake_case")]
 pub enum StopReason {
     /// The cancel flag was set.
@@ -111,19 +115,49 @@ pub enum StopReason {
         needed: u64,
         /// The limit.
         limit: u64,
+        /// Whether the trace had a box.
+        boxed: bool,
+    },
+    /// With no box, M reached [`DEFAULT_EXTENT_STEPS`] lattice steps from every seed: it may
+    /// be unbounded, and a box is needed to trace it.
+    NoBox {
+        /// The extent, in lattice steps.
+        steps: u32,
+        /// About that many units of length.
+        distance: f64,
     },
 }
+
+/// How far (in lattice steps, about one edge each, along any lattice axis) a trace with no
+/// box may go from its nearest seed: beyond that M is taken to be unbounded and the trace
+/// stops, asking for a box.
+pub const DEFAULT_EXTENT_STEPS: u32 = 1024;
 
 impl std::fmt::Display for StopReason {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         match self {
             StopReason::Interrupted => write!(f, "interrupted"),
-            StopReason::MemoryLimit { needed, limit } => write!(
+            StopReason::MemoryLimit {
+                needed,
+                limit,
+                boxed,
+            } => write!(
                 f,
-                "stopped before passing the memory limit: the next level needs {}, the limit \
-                 is {} (raise --max-memory, or use a larger edge or a smaller box)",
+                "stopped before passing the memory limit: the next step needs {}, the limit is \
+                 {} (raise --max-memory, or use a larger edge or {})",
                 crate::memory::human_bytes(*needed),
-                crate::memory::human_bytes(*limit)
+                crate::memory::human_bytes(*limit),
+                if *boxed {
+                    "a smaller box"
+                } else {
+                    "give a box: with none, M may be unbounded"
+                }
+            ),
+            StopReason::NoBox { steps, distance } => write!(
+                f,
+                "no box was given and M reaches {steps} lattice steps (about {distance:.3e}) from \
+                 its seeds: it may be unbounded; give a box (--box, or box = [...] in the spec) \
+                 to trace it"
             ),
         }
     }
@@ -444,7 +478,11 @@ macro_rules! with_width {
             9..=12 => $f::<12>($($arg),*),
             13..=16 => $f::<16>($($arg),*),
             17..=24 => $f::<24>($($arg),*),
-            w => Err(Error::Trace(format!("simplex keys of {w} words are not supported"))),
+            // d = 63 with no box: 63 coordinates of 20 bits and 63 part indices of 6 bits.
+            25..=32 => $f::<32>($($arg),*),
+            w => Err(Error::Trace(format!(
+                "simplex keys of {w} words are not supported (at most 32): give a smaller box"
+            ))),
         }
     };
 }
@@ -551,7 +589,9 @@ pub fn trace(
     let words = ctx.codec.words();
     // On a worker of the pool, levels too small to split run on this thread with no
     // hand-over to another, and the other threads stay awake for the larger ones.
-    warm::warm(|| with_width!(words, trace_with(f, ctx, &seeds, search, opts.search_seed)))
+    warm::maybe(opts.warm, || {
+        with_width!(words, trace_with(f, ctx, &seeds, search, opts.search_seed))
+    })
 }
 
 fn trace_with<const W: usize>(
@@ -593,7 +633,7 @@ pub fn exhaustive(
     let ctx = context(f, tri, oracle, opts)?;
     scan_box(opts)?;
     let words = ctx.codec.words();
-    warm::warm(|| with_width!(words, exhaustive_with(ctx)))
+    warm::maybe(opts.warm, || with_width!(words, exhaustive_with(ctx)))
 }
 
 fn scan_box<'a>(opts: &'a TraceOptions) -> Result<&'a [[f64; 2]]> {
