@@ -7,6 +7,7 @@ use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
 use cli::bench::BenchArgs;
+use cli::text::say;
 use cli::trace::TraceArgs;
 use isomesh::expr::PRESETS;
 use isomesh::memory::CountingAlloc;
@@ -66,13 +67,13 @@ fn main() -> ExitCode {
         Some(Command::Info) => {
             let list = isomesh::gpu::adapters();
             if list.is_empty() {
-                println!(
+                say!(
                     "no GPU adapter: wgpu found no driver that runs compute shaders; \
                      --backend auto uses the CPU, --backend gpu fails"
                 );
             }
             for (i, a) in list.iter().enumerate() {
-                println!(
+                say!(
                     "{}{}: {} ({}, {}{}), driver {}, SHADER_F64 {}, storage binding {} MiB",
                     if i == 0 { "* " } else { "  " },
                     i,
@@ -90,7 +91,7 @@ fn main() -> ExitCode {
                 );
             }
             if !list.is_empty() && std::env::var_os("WGPU_BACKEND").is_none() {
-                println!(
+                say!(
                     "(GL is probed only where no Vulkan, Metal or Dx12 adapter runs compute; \
                      WGPU_BACKEND=gl lists its adapters)"
                 );
@@ -101,7 +102,7 @@ fn main() -> ExitCode {
             for p in PRESETS {
                 let params: Vec<String> =
                     p.params.iter().map(|(n, v)| format!("{n}={v}")).collect();
-                println!("{:<15} {}  [{}]", p.name, p.about, params.join(", "));
+                say!("{:<15} {}  [{}]", p.name, p.about, params.join(", "));
             }
             Ok(())
         }
@@ -111,7 +112,7 @@ fn main() -> ExitCode {
             params,
         }) => cli::load(spec, preset, &params).and_then(|p| cli::check(&p)),
         None => {
-            println!(
+            say!(
                 "isomesh with no command traces the built-in torus (R = 1, r = 0.4) on a \
                  Coxeter triangulation (isomesh --help for more)."
             );
@@ -130,11 +131,16 @@ fn main() -> ExitCode {
             cli::trace::run(&args)
         }
     };
+    let signal = cli::signals::received();
     match result {
-        Ok(()) => ExitCode::SUCCESS,
+        Ok(()) if signal.is_none() => ExitCode::SUCCESS,
+        Ok(()) => ExitCode::from(cli::signals::exit_status(signal.unwrap_or(2))),
         Err(e) => {
-            eprintln!("error: {e}");
-            ExitCode::FAILURE
+            eprintln!("error: {}", cli::text::shown(&e.to_string()));
+            match signal {
+                Some(sig) => ExitCode::from(cli::signals::exit_status(sig)),
+                None => ExitCode::FAILURE,
+            }
         }
     }
 }

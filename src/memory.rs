@@ -87,3 +87,23 @@ pub fn total_ram() -> Option<u64> {
 pub fn default_limit() -> u64 {
     total_ram().map_or(8 << 30, |r| r / 4 * 3)
 }
+
+/// A byte count with a unit that shows it (B, KiB, MiB, GiB, TiB), three significant digits.
+pub fn human_bytes(n: u64) -> String {
+    const UNITS: [&str; 5] = ["B", "KiB", "MiB", "GiB", "TiB"];
+    let mut v = n as f64;
+    let mut u = 0;
+    while v >= 1024.0 && u + 1 < UNITS.len() {
+        v /= 1024.0;
+        u += 1;
+    }
+    if u == 0 {
+        format!("{n} B")
+    } else if v < 10.0 {
+        format!("{v:.2} {}", UNITS[u])
+    } else if v < 100.0 {
+        format!("{v:.1} {}", UNITS[u])
+    } else {
+        format!("{v:.0} {}", UNITS[u])
+    }
+}

@@ -151,6 +151,8 @@ pub struct Report {
     pub complete: bool,
     /// Why it stopped early.
     pub stopped: Option<String>,
+    /// The signal that stopped the run (SIGINT, SIGTERM, SIGHUP), if one did.
+    pub signal: Option<String>,
     /// What failed after tracing (the complex or a file), or why nothing was found.
     pub error: Option<String>,
     /// Requested files that were not written.
@@ -286,6 +288,7 @@ impl Report {
             singular_seeds: run.singular_seeds,
             complete: st.stopped.is_none(),
             stopped: st.stopped.as_ref().map(ToString::to_string),
+            signal: None,
             error: None,
             not_written: Vec::new(),
             complex: None,

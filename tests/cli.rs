@@ -1,6 +1,8 @@
 //! The `isomesh` command line: the report contract, outputs, and clean failures.
 
-use std::path::{Path, PathBuf};
+mod common;
+
+use std::path::Path;
 use std::process::{Command, Output};
 
 fn isomesh(dir: &Path, args: &[&str]) -> Output {
@@ -11,11 +13,9 @@ fn isomesh(dir: &Path, args: &[&str]) -> Output {
         .expect("the isomesh binary runs")
 }
 
-fn scratch(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("isomesh-cli-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
+/// A scratch directory, removed when the test ends.
+fn scratch(name: &str) -> common::Scratch {
+    common::Scratch::new(name)
 }
 
 fn stderr(o: &Output) -> String {

@@ -6,7 +6,7 @@ use std::path::{Path, PathBuf};
 
 use isomesh::complex::Complex;
 use isomesh::export::picture::Picture;
-use isomesh::export::{write_mesh, Mesh, MeshFormat, Projection};
+use isomesh::export::{write_mesh, write_mesh_as, Encoding, Mesh, MeshFormat, Projection};
 use isomesh::expr::{preset, Problem};
 use isomesh::trace::{trace, CpuOracle, TraceOptions};
 
@@ -215,8 +215,12 @@ fn surface_exports_read_back_with_the_same_counts() {
     let out = dir("surface");
     for (name, format) in MeshFormat::ALL {
         let path = out.join(format!("torus.{name}"));
-        write_mesh(&path, &mesh, format).unwrap();
-        assert!(!out.join(format!("torus.{name}.partial")).exists());
+        write_mesh_as(&path, &mesh, format, Encoding::Ascii).unwrap();
+        assert!(out.read_dir().unwrap().all(|e| !e
+            .unwrap()
+            .file_name()
+            .to_string_lossy()
+            .ends_with(".partial")));
         match format {
             MeshFormat::Ply => {
                 let (v, cells, _) = read_ply(&text(&path));
@@ -290,7 +294,7 @@ fn curves_volumes_and_projections() {
     write_mesh(&path, &mesh, MeshFormat::Obj).unwrap();
     let (v, lines) = read_obj(&text(&path));
     assert_eq!((v, lines.len()), (c.vertex_count(), c.level(1).len()));
-    write_mesh(&out.join("c.ply"), &mesh, MeshFormat::Ply).unwrap();
+    write_mesh_as(&out.join("c.ply"), &mesh, MeshFormat::Ply, Encoding::Ascii).unwrap();
     let (_, edges, _) = read_ply(&text(&out.join("c.ply")));
     assert_eq!(edges.len(), c.level(1).len());
     assert!(write_mesh(&out.join("c.off"), &mesh, MeshFormat::Off).is_err());
@@ -324,7 +328,7 @@ fn curves_volumes_and_projections() {
         (vol - 2.0 * ball).abs() < 0.05 * ball,
         "tetrahedra volume {vol}"
     );
-    write_mesh(&out.join("s3.vtu"), &mesh, MeshFormat::Vtu).unwrap();
+    write_mesh_as(&out.join("s3.vtu"), &mesh, MeshFormat::Vtu, Encoding::Ascii).unwrap();
     let s = text(&out.join("s3.vtu"));
     assert_eq!(attr(&s, "NumberOfCells"), mesh.tetrahedra.len());
     assert!(write_mesh(&out.join("s3.ply"), &mesh, MeshFormat::Ply).is_err());
@@ -333,11 +337,11 @@ fn curves_volumes_and_projections() {
     let p = problem("flat-torus", &[("edge", 0.3)]);
     let c = build(&p);
     let mesh = Mesh::new(&c, None, &Projection::Pca, "flat torus");
-    write_mesh(&out.join("ft.ply"), &mesh, MeshFormat::Ply).unwrap();
+    write_mesh_as(&out.join("ft.ply"), &mesh, MeshFormat::Ply, Encoding::Ascii).unwrap();
     let (nv, faces, head) = read_ply(&text(&out.join("ft.ply")));
     assert_eq!((nv, faces.len()), (c.vertex_count(), c.level(2).len()));
     assert!(head.contains("projection: pca: centre ["), "{head}");
-    write_mesh(&out.join("ft.vtu"), &mesh, MeshFormat::Vtu).unwrap();
+    write_mesh_as(&out.join("ft.vtu"), &mesh, MeshFormat::Vtu, Encoding::Ascii).unwrap();
     let s = text(&out.join("ft.vtu"));
     let coords = floats(vtu_array(&s, "coordinates"));
     assert_eq!(coords, c.points(), "the d-D coordinates are kept exactly");
@@ -373,5 +377,193 @@ fn the_picture_decodes_at_its_size_and_is_not_blank() {
     let c = build(&p);
     let mesh = Mesh::new(&c, None, &Projection::Auto, "circle");
     assert!(Picture::render(&mesh, 10, 10, "").is_err());
+    std::fs::remove_dir_all(out).unwrap();
+}
+
+/// A binary little-endian PLY file: its header, the vertices (3 doubles each) and the cells
+/// (uchar-counted int lists for faces, int pairs for edges).
+fn read_ply_binary(bytes: &[u8]) -> (String, Vec<[f64; 3]>, Vec<Vec<usize>>) {
+    let end = bytes
+        .windows(11)
+        .position(|w| w == b"end_header\n")
+        .unwrap()
+        + 11;
+    let head = std::str::from_utf8(&bytes[..end]).unwrap().to_string();
+    assert!(head.contains("format binary_little_endian 1.0\n"), "{head}");
+    let count = |el: &str| -> usize {
+        head.lines()
+            .find_map(|l| l.strip_prefix(&format!("element {el} ")))
+            .map_or(0, |n| n.parse().unwrap())
+    };
+    let (nv, nf, ne) = (count("vertex"), count("face"), count("edge"));
+    let mut at = end;
+    let mut take = |n: usize| {
+        let b = &bytes[at..at + n];
+        at += n;
+        b
+    };
+    let verts: Vec<[f64; 3]> = (0..nv)
+        .map(|_| [0; 3].map(|_| f64::from_le_bytes(take(8).try_into().unwrap())))
+        .collect();
+    let int = |b: &[u8]| i32::from_le_bytes(b.try_into().unwrap()) as usize;
+    let mut cells = Vec::new();
+    for _ in 0..nf {
+        let n = take(1)[0] as usize;
+        cells.push((0..n).map(|_| int(take(4))).collect());
+    }
+    for _ in 0..ne {
+        cells.push(vec![int(take(4)), int(take(4))]);
+    }
+    assert_eq!(at, bytes.len(), "bytes after the last element");
+    (head, verts, cells)
+}
+
+/// The arrays of a VTU file with raw appended data, by name (`Points` for the unnamed
+/// points array), as their bytes, after checking each array's UInt64 size header.
+fn read_vtu_binary(bytes: &[u8]) -> std::collections::HashMap<String, (String, Vec<u8>)> {
+    let mark = b"<AppendedData encoding=\"raw\">\n_";
+    let start = bytes.windows(mark.len()).position(|w| w == mark).unwrap();
+    let xml = std::str::from_utf8(&bytes[..start]).unwrap();
+    let data = &bytes[start + mark.len()..];
+    assert!(xml.contains("header_type=\"UInt64\"") && xml.contains("LittleEndian"));
+    let mut out = std::collections::HashMap::new();
+    let mut sum = 0;
+    for tag in xml.split("<DataArray ").skip(1) {
+        let tag = &tag[..tag.find("/>").unwrap()];
+        let get = |k: &str| {
+            tag.find(&format!("{k}=\"")).map(|i| {
+                let v = &tag[i + k.len() + 2..];
+                v[..v.find('"').unwrap()].to_string()
+            })
+        };
+        assert_eq!(get("format").as_deref(), Some("appended"));
+        let offset: usize = get("offset").unwrap().parse().unwrap();
+        let size = u64::from_le_bytes(data[offset..offset + 8].try_into().unwrap()) as usize;
+        sum += 8 + size;
+        let name = get("Name").unwrap_or_else(|| "Points".into());
+        out.insert(
+            name,
+            (
+                get("type").unwrap(),
+                data[offset + 8..offset + 8 + size].to_vec(),
+            ),
+        );
+    }
+    assert_eq!(&data[sum..], b"\n</AppendedData>\n</VTKFile>\n");
+    out
+}
+
+fn le_f64(b: &[u8]) -> Vec<f64> {
+    b.chunks_exact(8)
+        .map(|c| f64::from_le_bytes(c.try_into().unwrap()))
+        .collect()
+}
+
+fn le_i32(b: &[u8]) -> Vec<f64> {
+    b.chunks_exact(4)
+        .map(|c| i32::from_le_bytes(c.try_into().unwrap()) as f64)
+        .collect()
+}
+
+fn le_i64(b: &[u8]) -> Vec<f64> {
+    b.chunks_exact(8)
+        .map(|c| i64::from_le_bytes(c.try_into().unwrap()) as f64)
+        .collect()
+}
+
+/// Binary PLY and VTU hold exactly what their ASCII forms hold (ASCII prints shortest
+/// round-trip floats, so the numbers are equal bit for bit), for a curve, a surface and a
+/// 3-manifold, and binary is the default.
+#[test]
+fn binary_ply_and_vtu_read_back_as_their_ascii_forms() {
+    let out = dir("binary");
+    for (name, params, m) in [
+        ("circle", vec![], 1),
+        ("torus", vec![("edge", 0.1)], 2),
+        ("sphere", vec![("m", 3.0), ("d", 4.0), ("edge", 0.3)], 3),
+    ] {
+        let p = problem(name, &params);
+        let c = build(&p);
+        let mesh = Mesh::new(&c, Some(&p.system), &Projection::Auto, name);
+        if m <= 2 {
+            let (bin, asc) = (
+                out.join(format!("{name}.b.ply")),
+                out.join(format!("{name}.a.ply")),
+            );
+            write_mesh(&bin, &mesh, MeshFormat::Ply).unwrap();
+            write_mesh_as(&asc, &mesh, MeshFormat::Ply, Encoding::Ascii).unwrap();
+            let (head, verts, cells) = read_ply_binary(&std::fs::read(&bin).unwrap());
+            let (nv, ascii_cells, ascii_head) = read_ply(&text(&asc));
+            assert_eq!(
+                head.replace("binary_little_endian", "ascii"),
+                ascii_head + "end_header\n",
+                "{name}"
+            );
+            assert_eq!(verts.len(), nv, "{name}");
+            assert_eq!(cells, ascii_cells, "{name}");
+            let ascii_verts: Vec<f64> = text(&asc)
+                .split_once("end_header\n")
+                .unwrap()
+                .1
+                .lines()
+                .take(nv)
+                .flat_map(floats)
+                .collect();
+            assert_eq!(verts.concat(), ascii_verts, "{name}");
+            assert_eq!(verts.concat(), mesh.xyz, "{name}");
+            assert!(
+                std::fs::metadata(&bin).unwrap().len() < std::fs::metadata(&asc).unwrap().len()
+            );
+        }
+        let (bin, asc) = (
+            out.join(format!("{name}.b.vtu")),
+            out.join(format!("{name}.a.vtu")),
+        );
+        write_mesh(&bin, &mesh, MeshFormat::Vtu).unwrap();
+        write_mesh_as(&asc, &mesh, MeshFormat::Vtu, Encoding::Ascii).unwrap();
+        let arrays = read_vtu_binary(&std::fs::read(&bin).unwrap());
+        let s = text(&asc);
+        let b = std::fs::read(&bin).unwrap();
+        let xml_end = b.windows(13).position(|w| w == b"<AppendedData").unwrap();
+        let head = std::str::from_utf8(&b[..xml_end]).unwrap();
+        assert_eq!(
+            attr(head, "NumberOfPoints"),
+            attr(&s, "NumberOfPoints"),
+            "{name}"
+        );
+        assert_eq!(
+            attr(head, "NumberOfCells"),
+            attr(&s, "NumberOfCells"),
+            "{name}"
+        );
+        let f64s = |k: &str| {
+            assert_eq!(arrays[k].0, "Float64", "{name} {k}");
+            le_f64(&arrays[k].1)
+        };
+        let i64s = |k: &str| match arrays[k].0.as_str() {
+            "Int64" => le_i64(&arrays[k].1),
+            "Int32" => le_i32(&arrays[k].1),
+            t => panic!("{name} {k}: {t}"),
+        };
+        let u8s = |k: &str| -> Vec<f64> {
+            assert_eq!(arrays[k].0, "UInt8", "{name} {k}");
+            arrays[k].1.iter().map(|&v| v as f64).collect()
+        };
+        assert_eq!(
+            f64s("coordinates"),
+            floats(vtu_array(&s, "coordinates")),
+            "{name}"
+        );
+        assert_eq!(f64s("coordinates"), c.points(), "{name}");
+        assert_eq!(f64s("Points"), mesh.xyz, "{name}");
+        assert_eq!(
+            i64s("connectivity"),
+            floats(vtu_array(&s, "connectivity")),
+            "{name}"
+        );
+        assert_eq!(i64s("offsets"), floats(vtu_array(&s, "offsets")), "{name}");
+        assert_eq!(u8s("types"), floats(vtu_array(&s, "types")), "{name}");
+        assert_eq!(u8s("boundary"), floats(vtu_array(&s, "boundary")), "{name}");
+    }
     std::fs::remove_dir_all(out).unwrap();
 }

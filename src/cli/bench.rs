@@ -9,6 +9,8 @@ use clap::{Args, ValueEnum};
 use isomesh::bench::{timed, trace_case, OracleBatch, REFERENCE_CASES};
 use isomesh::export::plot::{write_charts, Chart, Series, PALETTE};
 use isomesh::export::write_atomic;
+
+use super::text::say;
 use isomesh::expr::ImplicitFunction;
 use isomesh::gpu::{Gpu, GpuOracle, Precision};
 use isomesh::trace::{CpuOracle, Oracle};
@@ -125,7 +127,7 @@ fn run_in_pool(args: &BenchArgs, threads: usize) -> Result<()> {
         ),
         None => "none".into(),
     };
-    println!("CPU: {threads} threads; GPU: {device}\n");
+    say!("CPU: {threads} threads; GPU: {device}\n");
     let mut precisions = Vec::new();
     if let Some(g) = &gpu {
         precisions.push(Precision::F32);
@@ -140,7 +142,7 @@ fn run_in_pool(args: &BenchArgs, threads: usize) -> Result<()> {
 
     if let Some(path) = &args.png {
         plot(path, &oracle_rows, &trace_rows, &precisions)?;
-        println!("\nwrote {}", path.display());
+        say!("\nwrote {}", path.display());
     }
     if let Some(path) = &args.json {
         let report = json!({
@@ -155,7 +157,7 @@ fn run_in_pool(args: &BenchArgs, threads: usize) -> Result<()> {
         write_atomic(path, |w| {
             serde_json::to_writer_pretty(&mut *w, &report).map_err(std::io::Error::other)
         })?;
-        println!("wrote {}", path.display());
+        say!("wrote {}", path.display());
     }
     Ok(())
 }
@@ -170,18 +172,19 @@ fn oracle_table(
     if args.k.0.is_empty() {
         return Ok(rows);
     }
-    println!(
+    say!(
         "Oracle alone: {} random k-simplices per batch, simplices per second (median of {})",
-        args.count, args.repeats
+        args.count,
+        args.repeats
     );
-    println!("GPU time per simplex: host (filters, packing, CPU recheck), then upload, compute and readback, each timed alone in a separate run.\n");
-    println!("| k | oracle | simplices/s | vs CPU | rechecked | host ns | upload ns | compute ns | readback ns | same verdicts |");
-    println!("|---|---|---|---|---|---|---|---|---|---|");
+    say!("GPU time per simplex: host (filters, packing, CPU recheck), then upload, compute and readback, each timed alone in a separate run.\n");
+    say!("| k | oracle | simplices/s | vs CPU | rechecked | host ns | upload ns | compute ns | readback ns | same verdicts |");
+    say!("|---|---|---|---|---|---|---|---|---|---|");
     for &k in &args.k.0 {
         let batch = OracleBatch::random(k, args.count, k as u64)?;
         let cpu = CpuOracle::new(&batch.function);
         let (cpu_rate, cpu_status, cpu_lambda) = batch.time(&cpu, args.repeats)?;
-        println!("| {k} | cpu | {cpu_rate:.3e} | 1 | | | | | | |");
+        say!("| {k} | cpu | {cpu_rate:.3e} | 1 | | | | | | |");
         rows.push(json!({"k": k, "oracle": "cpu", "simplices_per_s": cpu_rate}));
         let Some(g) = gpu else { continue };
         for &p in precisions {
@@ -204,7 +207,7 @@ fn oracle_table(
             let ph = o.stats();
             let ns = |s: f64| s * 1e9 / batch.len() as f64;
             let name = format!("gpu {}", p.ty());
-            println!(
+            say!(
                 "| {k} | {name} | {rate:.3e} | {:.2} | {:.1}% | {:.1} | {:.1} | {:.1} | {:.1} | {} |",
                 rate / cpu_rate,
                 100.0 * recheck,
@@ -238,14 +241,13 @@ fn eval_table(args: &BenchArgs, gpu: Option<&Gpu>, precisions: &[Precision]) -> 
     if args.k.0.is_empty() {
         return Ok(rows);
     }
-    println!(
+    say!(
         "\nVertex evaluation alone: {} lattice vertices, vertices per second (median of {})\n",
-        args.count, args.repeats
+        args.count,
+        args.repeats
     );
-    println!(
-        "| preset | d | k | evaluator | vertices/s | vs CPU | largest difference from the CPU |"
-    );
-    println!("|---|---|---|---|---|---|---|");
+    say!("| preset | d | k | evaluator | vertices/s | vs CPU | largest difference from the CPU |");
+    say!("|---|---|---|---|---|---|---|");
     for name in ["3-torus", "bagel-klein"] {
         let p = isomesh::expr::preset(name, &[])?;
         let (d, k) = (p.dim(), p.system.codim());
@@ -259,7 +261,7 @@ fn eval_table(args: &BenchArgs, gpu: Option<&Gpu>, precisions: &[Precision]) -> 
             cpu.eval_vertices(&tri, &lattice, &mut cpu_values)
         })?;
         let cpu_rate = args.count as f64 / cpu_s;
-        println!("| {name} | {d} | {k} | cpu | {cpu_rate:.3e} | 1 | |");
+        say!("| {name} | {d} | {k} | cpu | {cpu_rate:.3e} | 1 | |");
         rows.push(json!({"preset": name, "evaluator": "cpu", "vertices_per_s": cpu_rate}));
         let Some(g) = gpu else { continue };
         for &prec in precisions {
@@ -272,7 +274,7 @@ fn eval_table(args: &BenchArgs, gpu: Option<&Gpu>, precisions: &[Precision]) -> 
                 .fold(0.0, f64::max);
             let rate = args.count as f64 / s;
             let name_p = format!("gpu {}", prec.ty());
-            println!(
+            say!(
                 "| {name} | {d} | {k} | {name_p} | {rate:.3e} | {:.2} | {worst:.1e} |",
                 rate / cpu_rate
             );
@@ -293,14 +295,12 @@ fn trace_table(args: &BenchArgs, gpu: Option<&Gpu>) -> Result<Vec<Value>> {
         TraceSet::Quick => 200_000,
         TraceSet::All => u64::MAX,
     };
-    println!(
+    say!(
         "\nTraces of the reference cases (C++: GUDHI, one thread), median of {}\n",
         args.repeats
     );
-    println!(
-        "| case | d | k | simplices | C++ | CPU | CPU speed-up | GPU | GPU speed-up | same S |"
-    );
-    println!("|---|---|---|---|---|---|---|---|---|---|");
+    say!("| case | d | k | simplices | C++ | CPU | CPU speed-up | GPU | GPU speed-up | same S |");
+    say!("|---|---|---|---|---|---|---|---|---|---|");
     for case in REFERENCE_CASES.iter().filter(|c| c.simplices <= limit) {
         let p = case.problem()?;
         let cpu_oracle = CpuOracle::new(&p.system);
@@ -332,7 +332,7 @@ fn trace_table(args: &BenchArgs, gpu: Option<&Gpu>) -> Result<Vec<Value>> {
                 )));
             }
         }
-        println!(
+        say!(
             "| {} | {} | {} | {n} | {} s | {cpu_s:.3} s | {:.1}x | {} | {} | {} |",
             case.label,
             p.dim(),

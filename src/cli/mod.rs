@@ -1,6 +1,8 @@
 //! The command line's pieces: loading a problem, `check`, `trace`, `bench`.
 
 pub mod bench;
+pub mod signals;
+pub mod text;
 pub mod trace;
 
 use std::path::PathBuf;
@@ -8,6 +10,7 @@ use std::path::PathBuf;
 use isomesh::expr::{preset, ImplicitFunction, Problem, Spec};
 use isomesh::gpu::wgsl::{eval_shader, Precision};
 use isomesh::Result;
+use text::{num, say, shown};
 
 /// Parses a `name=value` preset parameter.
 pub fn parse_param(s: &str) -> std::result::Result<(String, f64), String> {
@@ -33,7 +36,33 @@ pub fn load(
                 .file_stem()
                 .map(|s| s.to_string_lossy().into_owned())
                 .unwrap_or_default();
-            Spec::from_file(&path)?.resolve(&stem)
+            let mut spec = Spec::from_file(&path)?;
+            // --param overrides the spec's `parameters`; it cannot add new names.
+            for (n, v) in params {
+                match spec.parameters.get_mut(n) {
+                    Some(slot) if v.is_finite() => *slot = *v,
+                    Some(_) => {
+                        return Err(isomesh::Error::Spec(format!(
+                            "--param {}: the value is not finite",
+                            shown(n)
+                        )))
+                    }
+                    None => {
+                        let names: Vec<&str> = spec.parameters.keys().map(String::as_str).collect();
+                        return Err(isomesh::Error::Spec(format!(
+                            "--param {}: {} has no such parameter ({})",
+                            shown(n),
+                            path.display(),
+                            if names.is_empty() {
+                                "it has none".to_string()
+                            } else {
+                                format!("it has {}", names.join(", "))
+                            }
+                        )));
+                    }
+                }
+            }
+            spec.resolve(&stem)
         }
         (None, Some(n)) => preset(&n, params),
         (None, None) => preset("torus", params),
@@ -47,25 +76,29 @@ pub fn load(
 pub fn check(p: &Problem) -> Result<()> {
     let sys = &p.system;
     let (d, k) = (sys.ambient_dim(), sys.codim());
-    println!("{}: f: R^{d} -> R^{k}, a {}-manifold", p.name, d - k);
+    say!(
+        "{}: f: R^{d} -> R^{k}, a {}-manifold",
+        shown(&p.name),
+        d - k
+    );
     for (i, e) in sys.equations().iter().enumerate() {
-        println!("  f{} = {e}", i + 1);
+        say!("  f{} = {}", i + 1, shown(&e.to_string()));
     }
     for g in sys.boundary() {
-        println!("  boundary: {g} >= 0");
+        say!("  boundary: {} >= 0", shown(&g.to_string()));
     }
     let t = p.triangulation.build(d)?;
-    println!(
+    say!(
         "triangulation: {} in R^{d}, longest edge {}",
         t.kind().name(),
-        t.edge()
+        num(t.edge())
     );
     for s in &p.seeds {
         let mut f = vec![0.0; k];
         sys.eval_batch(s, &mut f);
         let norm = f.iter().map(|v| v * v).sum::<f64>().sqrt();
         let simplex = t.locate(s)?;
-        println!(
+        say!(
             "seed {s:?}: |f| = {norm:.1e}, in the {}-simplex {simplex}",
             simplex.dim()
         );
@@ -73,7 +106,7 @@ pub fn check(p: &Problem) -> Result<()> {
     for (what, prog) in [("f", sys.values()), ("Jacobian", sys.jacobian_program())] {
         for prec in [Precision::F32, Precision::F64] {
             let src = eval_shader(prog, prec)?;
-            println!(
+            say!(
                 "WGSL for {what} ({}): {} lines, validated by naga",
                 prec.ty(),
                 src.lines().count()

@@ -2,17 +2,18 @@
 //! the JSON report, print a summary.
 
 use std::io::Write;
-use std::path::PathBuf;
-use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::{Arc, OnceLock};
+use std::path::{Path, PathBuf};
+use std::sync::atomic::Ordering;
 use std::time::{Duration, Instant};
 
 use clap::{Args, ValueEnum};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use isomesh::complex::{Complex, Topology};
 use isomesh::export::picture::Picture;
+use isomesh::export::safe::{check_target, FileId};
 use isomesh::export::{
-    write_atomic, write_mesh, write_sample, Mesh, MeshFormat, Projection, SampleFormat,
+    write_atomic, write_mesh_as, write_sample, write_sample_to, Encoding, Mesh, MeshFormat,
+    Projection, SampleFormat,
 };
 use isomesh::expr::{ImplicitFunction, Problem};
 use isomesh::gpu::{Gpu, GpuOracle, Precision};
@@ -22,7 +23,8 @@ use isomesh::trace::{exhaustive, trace, CpuOracle, Oracle, Progress, TraceOption
 use isomesh::triangulation::TriangulationKind;
 use isomesh::{Error, Result};
 
-use super::load;
+use super::text::{num, say, shown};
+use super::{load, signals};
 
 /// Which oracle runs the intersection tests.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
@@ -61,10 +63,10 @@ pub struct TraceArgs {
     #[arg(long)]
     pub triangulation: Option<TriangulationKind>,
     /// Seed of the random offset of the triangulation.
-    #[arg(long)]
+    #[arg(long, allow_hyphen_values = true, value_parser = parse_count::<u64>)]
     pub offset_seed: Option<u64>,
     /// Seed of the random rotation of the triangulation (default 1).
-    #[arg(long, conflicts_with = "no_rotation")]
+    #[arg(long, conflicts_with = "no_rotation", allow_hyphen_values = true, value_parser = parse_count::<u64>)]
     pub rotation_seed: Option<u64>,
     /// Keep the triangulation's lattice axis-aligned (no rotation).
     #[arg(long)]
@@ -73,7 +75,7 @@ pub struct TraceArgs {
     #[arg(long = "seed", allow_hyphen_values = true)]
     pub seeds: Vec<NumList>,
     /// Longest edge of a d-simplex of the triangulation.
-    #[arg(long)]
+    #[arg(long, allow_hyphen_values = true, value_parser = parse_edge)]
     pub edge: Option<f64>,
     /// Scan every k-simplex in the box instead of tracing from seeds.
     #[arg(long)]
@@ -83,7 +85,7 @@ pub struct TraceArgs {
     pub bbox: Option<NumList>,
     /// Random box points projected onto M to find components (default: 512 when there is no
     /// seed, else 0).
-    #[arg(long)]
+    #[arg(long, allow_hyphen_values = true, value_parser = parse_count::<usize>)]
     pub search: Option<usize>,
     /// Oracle backend [default: cpu]: gpu uses any adapter (software ones too); auto a
     /// hardware GPU when there is one, else the CPU.
@@ -96,16 +98,17 @@ pub struct TraceArgs {
     /// GPU backend: frontier simplices per slice of a trace level; wider levels are decided
     /// slice by slice, the next slice named on the CPU meanwhile (for example 16384; default
     /// 0: whole levels). The result does not depend on it.
-    #[arg(long)]
+    #[arg(long, allow_hyphen_values = true, value_parser = parse_count::<usize>)]
     pub level_slice: Option<usize>,
     /// Worker threads (default: all cores).
-    #[arg(long)]
+    #[arg(long, allow_hyphen_values = true, value_parser = parse_count::<usize>)]
     pub threads: Option<usize>,
     /// Memory limit, bytes or with a K/M/G suffix (default: 3/4 of RAM).
-    #[arg(long, value_parser = parse_bytes)]
+    #[arg(long, allow_hyphen_values = true, value_parser = parse_bytes)]
     pub max_memory: Option<u64>,
     /// Write the result (repeatable): the sample as .csv, .xyz or .txt; the mesh as .ply,
-    /// .obj, .off, .stl (surfaces), .mesh (Medit), .vtu (ParaView) or .npz (NumPy).
+    /// .obj, .off, .stl (surfaces), .mesh (Medit), .vtu (ParaView) or .npz (NumPy). `-` is
+    /// standard output, for the sample (CSV unless --format says xyz).
     #[arg(long)]
     pub out: Vec<PathBuf>,
     /// Output format for --out, overriding the file extension: csv, xyz, ply, obj, off, stl,
@@ -115,7 +118,7 @@ pub struct TraceArgs {
     /// Draw the mesh into a PNG picture.
     #[arg(long)]
     pub png: Option<PathBuf>,
-    /// Size of the picture, WIDTHxHEIGHT.
+    /// Size of the picture, WIDTHxHEIGHT (1 to 16384 pixels a side).
     #[arg(long, default_value = "1200x900", value_parser = parse_size)]
     pub png_size: (usize, usize),
     /// How R^d is seen in 3-D for files and pictures: auto (the coordinates up to d = 3,
@@ -125,12 +128,20 @@ pub struct TraceArgs {
     /// Only the sample: no cell complex, no topology report, no mesh outputs.
     #[arg(long)]
     pub no_complex: bool,
+    /// PLY and VTU files as text rather than binary (Medit `.mesh`, OBJ and OFF are text
+    /// always, STL and NPZ binary always).
+    #[arg(long)]
+    pub ascii: bool,
     /// Write a JSON report.
     #[arg(long)]
     pub report: Option<PathBuf>,
     /// No progress bar and no summary.
     #[arg(long, short)]
     pub quiet: bool,
+    /// Name each phase on standard error as it starts (grid, search, levels, complex,
+    /// writing): a log for batch jobs.
+    #[arg(long, short, conflicts_with = "quiet")]
+    pub verbose: bool,
 }
 
 /// A comma-separated list of numbers, as a flag value.
@@ -144,7 +155,7 @@ impl std::str::FromStr for NumList {
             .map(|t| {
                 t.trim()
                     .parse::<f64>()
-                    .map_err(|_| format!("'{t}' is not a number"))
+                    .map_err(|_| format!("'{}' is not a number", shown(t)))
             })
             .collect::<std::result::Result<_, _>>()
             .map(NumList)
@@ -164,9 +175,9 @@ pub fn parse_bytes(s: &str) -> std::result::Result<u64, String> {
     let v: f64 = num
         .trim()
         .parse()
-        .map_err(|_| format!("'{s}' is not a size (e.g. 2G, 512M, 1000000)"))?;
+        .map_err(|_| format!("'{}' is not a size (e.g. 2G, 512M, 1000000)", shown(s)))?;
     if !(v.is_finite() && v > 0.0) {
-        return Err(format!("'{s}' must be positive"));
+        return Err(format!("'{}' must be positive", shown(s)));
     }
     Ok((v * mult as f64) as u64)
 }
@@ -176,12 +187,45 @@ fn parse_size(s: &str) -> std::result::Result<(usize, usize), String> {
     let (w, h) = s
         .split_once(['x', 'X'])
         .ok_or_else(|| format!("'{s}' is not WIDTHxHEIGHT (e.g. 1200x900)"))?;
-    let p = |t: &str| {
-        t.trim()
-            .parse::<usize>()
-            .map_err(|_| format!("'{s}' is not WIDTHxHEIGHT (e.g. 1200x900)"))
+    let p = |t: &str| match t.trim().parse::<usize>() {
+        Ok(n) if (1..=MAX_PNG_SIDE).contains(&n) => Ok(n),
+        Ok(_) => Err(format!(
+            "'{}': each side must be 1 to {MAX_PNG_SIDE} pixels",
+            shown(s)
+        )),
+        Err(_) => Err(format!(
+            "'{}' is not WIDTHxHEIGHT (e.g. 1200x900)",
+            shown(s)
+        )),
     };
     Ok((p(w)?, p(h)?))
+}
+
+/// Largest side of a picture, in pixels.
+const MAX_PNG_SIDE: usize = 16384;
+
+/// Parses a positive finite edge length.
+fn parse_edge(s: &str) -> std::result::Result<f64, String> {
+    match s.trim().parse::<f64>() {
+        Ok(v) if v.is_finite() && v > 0.0 => Ok(v),
+        Ok(v) => Err(format!(
+            "{} is not a length: the edge must be positive and finite",
+            num(v)
+        )),
+        Err(_) => Err(format!("'{}' is not a number", shown(s))),
+    }
+}
+
+/// Parses a non-negative whole number, naming a negative one as such.
+fn parse_count<T: std::str::FromStr>(s: &str) -> std::result::Result<T, String> {
+    let t = s.trim();
+    t.parse::<T>().map_err(|_| {
+        if t.starts_with('-') && t[1..].parse::<f64>().is_ok() {
+            format!("{} is negative: give a whole number from 0 up", shown(t))
+        } else {
+            format!("'{}' is not a whole number", shown(t))
+        }
+    })
 }
 
 /// What one --out path receives.
@@ -204,7 +248,8 @@ fn output_kind(path: &std::path::Path, format: Option<&str>) -> Result<Output> {
     match format {
         Some(f) => by_name(f).ok_or_else(|| {
             Error::Spec(format!(
-                "--format {f}: use csv, xyz, ply, obj, off, stl, mesh, vtu or npz"
+                "--format {}: use csv, xyz, ply, obj, off, stl, mesh, vtu or npz",
+                shown(f)
             ))
         }),
         None => path
@@ -212,7 +257,8 @@ fn output_kind(path: &std::path::Path, format: Option<&str>) -> Result<Output> {
             .and_then(|e| by_name(&e.to_string_lossy()))
             .ok_or_else(|| {
                 Error::Io(format!(
-                    "{}: unknown output format; use .csv, .xyz, .txt, .ply, .obj, .off, .stl,                      .mesh, .vtu or .npz, or --format",
+                    "{}: unknown output format; use .csv, .xyz, .txt, .ply, .obj, .off, .stl, \
+                     .mesh, .vtu or .npz, or --format",
                     path.display()
                 ))
             }),
@@ -231,19 +277,6 @@ fn box_from_flag(v: &[f64], d: usize) -> Result<Vec<[f64; 2]>> {
     }
 }
 
-/// The Ctrl-C flag, installed once.
-fn interrupt_flag() -> Arc<AtomicBool> {
-    static FLAG: OnceLock<Arc<AtomicBool>> = OnceLock::new();
-    FLAG.get_or_init(|| {
-        let flag = Arc::new(AtomicBool::new(false));
-        let f = flag.clone();
-        // If the handler cannot be installed, Ctrl-C keeps its default meaning.
-        let _ = ctrlc::set_handler(move || f.store(true, Ordering::Relaxed));
-        flag
-    })
-    .clone()
-}
-
 /// Most worker threads per core `--threads` may ask for.
 const MAX_THREADS_PER_CORE: usize = 4;
 /// Most worker threads in all.
@@ -259,6 +292,7 @@ fn max_threads() -> usize {
 pub fn run(args: &TraceArgs) -> Result<()> {
     let mut problem = load(args.spec.clone(), args.preset.clone(), &args.params)?;
     apply_flags(&mut problem, args)?;
+    let plan = plan_outputs(args, &problem)?;
     let mut threads = args.threads.unwrap_or_else(rayon::current_num_threads);
     if threads == 0 {
         return Err(Error::Spec("--threads must be at least 1".into()));
@@ -275,7 +309,110 @@ pub fn run(args: &TraceArgs) -> Result<()> {
         .num_threads(threads)
         .build()
         .map_err(|e| Error::Io(format!("cannot start {threads} threads: {e}")))?;
-    pool.install(|| run_in_pool(&problem, args, threads))
+    pool.install(|| run_in_pool(&problem, args, &plan, threads))
+}
+
+/// One --out: where it goes and what it receives.
+struct Planned {
+    path: PathBuf,
+    kind: Output,
+    /// `--out -`: standard output.
+    stdout: bool,
+}
+
+/// The outputs and the projection, every output flag checked before anything is traced:
+/// formats, the mesh dimension they hold, the projection, paths that must be regular files,
+/// and no output the same file as another or as the input spec.
+struct Plan {
+    outs: Vec<Planned>,
+    projection: Projection,
+}
+
+fn plan_outputs(args: &TraceArgs, p: &Problem) -> Result<Plan> {
+    let (d, k) = (p.system.ambient_dim(), p.system.codim());
+    if args.format.is_some() && args.out.is_empty() {
+        return Err(Error::Spec(
+            "--format sets the format of --out files: give --out too".into(),
+        ));
+    }
+    let mut outs = Vec::new();
+    for path in &args.out {
+        let stdout = path.as_os_str() == "-";
+        if !stdout {
+            check_target(path).map_err(|e| Error::Io(format!("--out {e}")))?;
+        }
+        let kind = match (stdout, args.format.as_deref()) {
+            (true, None) => Output::Sample(SampleFormat::Csv),
+            (_, format) => output_kind(path, format)?,
+        };
+        match &kind {
+            Output::Mesh(_) if stdout => {
+                return Err(Error::Spec(
+                    "--out -: standard output takes the sample only (csv or xyz); write mesh                      files to a path"
+                        .into(),
+                ))
+            }
+            Output::Mesh(format) => format.check_holds(d - k, path)?,
+            Output::Sample(_) => {}
+        }
+        outs.push(Planned {
+            path: path.clone(),
+            kind,
+            stdout,
+        });
+    }
+    if outs.iter().filter(|o| o.stdout).count() > 1 {
+        return Err(Error::Spec("--out - is given twice".into()));
+    }
+    let projection = Projection::parse(&args.project, d)?;
+    let wants_mesh = args.png.is_some() || outs.iter().any(|o| matches!(o.kind, Output::Mesh(_)));
+    if args.no_complex && wants_mesh {
+        return Err(Error::Spec(
+            "--no-complex: mesh files and pictures need the cell complex".into(),
+        ));
+    }
+    if args.backend.unwrap_or(Backend::Cpu) == Backend::Cpu {
+        for (set, flag) in [
+            (args.precision.is_some(), "--precision"),
+            (args.level_slice.is_some(), "--level-slice"),
+        ] {
+            if set {
+                return Err(Error::Spec(format!(
+                    "{flag} sets the GPU oracle; the CPU backend (the default) has no use for                      it: add --backend gpu or --backend auto, or leave {flag} out"
+                )));
+            }
+        }
+    }
+    // Files: each absent or a regular file, and no two the same file.
+    let mut files: Vec<(String, &Path, FileId)> = Vec::new();
+    let named = outs
+        .iter()
+        .filter(|o| !o.stdout)
+        .map(|o| ("--out", o.path.as_path()))
+        .chain(args.png.iter().map(|p| ("--png", p.as_path())))
+        .chain(args.report.iter().map(|p| ("--report", p.as_path())));
+    for (flag, path) in named {
+        check_target(path).map_err(|e| Error::Io(format!("{flag} {e}")))?;
+        let id = FileId::of(path)?;
+        if let Some((other, other_path, _)) = files.iter().find(|f| f.2.same(&id)) {
+            return Err(Error::Spec(format!(
+                "{flag} {} and {other} {} are the same file: give each output its own path",
+                shown(&path.display().to_string()),
+                shown(&other_path.display().to_string())
+            )));
+        }
+        files.push((flag.to_string(), path, id));
+    }
+    if let Some(spec) = &args.spec {
+        let id = FileId::of(spec)?;
+        if let Some((flag, path, _)) = files.iter().find(|f| f.2.same(&id)) {
+            return Err(Error::Spec(format!(
+                "{flag} {} is the input spec: it would be overwritten; give another path",
+                shown(&path.display().to_string())
+            )));
+        }
+    }
+    Ok(Plan { outs, projection })
 }
 
 fn apply_flags(p: &mut Problem, args: &TraceArgs) -> Result<()> {
@@ -320,7 +457,7 @@ fn apply_flags(p: &mut Problem, args: &TraceArgs) -> Result<()> {
     Ok(())
 }
 
-fn run_in_pool(p: &Problem, args: &TraceArgs, threads: usize) -> Result<()> {
+fn run_in_pool(p: &Problem, args: &TraceArgs, plan: &Plan, threads: usize) -> Result<()> {
     let sys = &p.system;
     let (d, k) = (sys.ambient_dim(), sys.codim());
     let tri = p.triangulation.build(d)?;
@@ -337,6 +474,9 @@ fn run_in_pool(p: &Problem, args: &TraceArgs, threads: usize) -> Result<()> {
             Err(e) => {
                 if !args.quiet {
                     eprintln!("note: {e}; using the CPU");
+                    if args.precision.is_some() || args.level_slice.is_some() {
+                        eprintln!("note: --precision and --level-slice do not apply on the CPU");
+                    }
                 }
                 None
             }
@@ -354,11 +494,22 @@ fn run_in_pool(p: &Problem, args: &TraceArgs, threads: usize) -> Result<()> {
         Some(o) => o,
         None => &cpu_oracle,
     };
-    let cancel = interrupt_flag();
-    cancel.store(false, Ordering::Relaxed);
+    let cancel = signals::stop_flag();
+    let stopping = || cancel.load(Ordering::SeqCst);
     let bar = progress_bar(args.quiet);
     let started = Instant::now();
+    let phase = |what: &str| {
+        if args.verbose {
+            eprintln!("isomesh: {what}");
+        }
+    };
     let report_progress = |pr: &Progress| {
+        if args.verbose {
+            eprintln!(
+                "isomesh: level {}, {} simplices, {} vertices",
+                pr.level, pr.simplices, pr.vertices
+            );
+        }
         if started.elapsed() > Duration::from_secs(1) {
             if bar.is_hidden() && !args.quiet {
                 bar.set_draw_target(ProgressDrawTarget::stderr());
@@ -385,8 +536,24 @@ fn run_in_pool(p: &Problem, args: &TraceArgs, threads: usize) -> Result<()> {
     let singular_seeds = singular_seeds(p, tri.edge(), args.quiet);
     let base = memory::live_bytes();
     let sample = if args.exhaustive {
+        phase("scan: evaluating f on the box's lattice, then deciding its simplices");
         exhaustive(sys, &tri, oracle, &opts)?
     } else {
+        let search = args.search.unwrap_or(if p.seeds.is_empty() {
+            isomesh::trace::DEFAULT_SEARCH_SAMPLES
+        } else {
+            0
+        });
+        phase(&format!(
+            "trace: from {} seed{}{}",
+            p.seeds.len(),
+            if p.seeds.len() == 1 { "" } else { "s" },
+            if search > 0 {
+                format!(", then from {search} box points projected onto M")
+            } else {
+                String::new()
+            }
+        ));
         trace(sys, &tri, oracle, &opts)?
     };
     let trace_peak = memory::peak_bytes().saturating_sub(base);
@@ -401,43 +568,40 @@ fn run_in_pool(p: &Problem, args: &TraceArgs, threads: usize) -> Result<()> {
         );
     }
 
-    let outputs = args
-        .out
-        .iter()
-        .map(|p| output_kind(p, args.format.as_deref()))
-        .collect::<Result<Vec<_>>>()?;
-    let projection = Projection::parse(&args.project, d)?;
-    for (path, kind) in args.out.iter().zip(&outputs) {
-        if let Output::Mesh(format) = kind {
-            format.check_holds(d - k, path)?;
-        }
-    }
-    let wants_mesh = args.png.is_some() || outputs.iter().any(|o| matches!(o, Output::Mesh(_)));
-    if args.no_complex && wants_mesh {
-        return Err(Error::Spec(
-            "--no-complex: mesh files and pictures need the cell complex".into(),
-        ));
-    }
+    let projection = &plan.projection;
+    let wants_mesh =
+        args.png.is_some() || plan.outs.iter().any(|o| matches!(o.kind, Output::Mesh(_)));
     let mut written = Vec::new();
     // The sample first: whatever happens next, it is on disk.
-    for (path, kind) in args.out.iter().zip(&outputs) {
-        if let Output::Sample(format) = kind {
-            write_sample(path, &sample, *format)?;
-            written.push(path.clone());
+    for o in &plan.outs {
+        if let Output::Sample(format) = o.kind {
+            if o.stdout {
+                let mut out = std::io::stdout().lock();
+                write_sample_to(&mut out, &sample, format)
+                    .and_then(|()| out.flush())
+                    .map_err(|e| Error::Io(format!("standard output: {e}")))?;
+            } else {
+                phase(&format!("writing {}", shown(&o.path.display().to_string())));
+                write_sample(&o.path, &sample, format)?;
+                written.push(o.path.clone());
+            }
         }
     }
     // A failure past this point still leaves the sample and the report on disk.
     let mut failure: Option<Error> = None;
-    let complex = if args.no_complex || sample.is_empty() {
+    let complex = if args.no_complex || sample.is_empty() || stopping() {
         None
     } else {
-        match Complex::build_within(&sample, sys, p.bbox.as_deref(), limit) {
+        phase("complex: building the cell complex");
+        match Complex::build_cancellable(&sample, sys, p.bbox.as_deref(), limit, &cancel) {
             Ok(c) => {
                 let t0 = Instant::now();
                 let topo = c.topology();
                 let topo_s = t0.elapsed().as_secs_f64();
                 Some((c, topo, topo_s))
             }
+            // Stopped by a signal: the report says so.
+            Err(_) if stopping() => None,
             Err(e) => {
                 failure = Some(e);
                 None
@@ -445,18 +609,26 @@ fn run_in_pool(p: &Problem, args: &TraceArgs, threads: usize) -> Result<()> {
         }
     };
     if let (Some((c, topo, _)), true) = (&complex, wants_mesh) {
+        let encoding = if args.ascii {
+            Encoding::Ascii
+        } else {
+            Encoding::Binary
+        };
         let mut write = || -> Result<()> {
             // Vertices in R^3 and the polygons as triangles, generously.
             let cells: usize = topo.cells.iter().sum();
             check_memory("the mesh", 48 * topo.cells[0] + 64 * cells, limit)?;
-            let mesh = Mesh::new(c, Some(sys), &projection, &p.name);
-            for (path, kind) in args.out.iter().zip(&outputs) {
-                if let Output::Mesh(format) = kind {
-                    write_mesh(path, &mesh, *format)?;
-                    written.push(path.clone());
+            let mesh = Mesh::new(c, Some(sys), projection, &p.name);
+            // A signal lets the file being written finish, and skips the rest.
+            for o in &plan.outs {
+                if let (Output::Mesh(format), false) = (&o.kind, stopping()) {
+                    phase(&format!("writing {}", shown(&o.path.display().to_string())));
+                    write_mesh_as(&o.path, &mesh, *format, encoding)?;
+                    written.push(o.path.clone());
                 }
             }
-            if let Some(path) = &args.png {
+            if let (Some(path), false) = (&args.png, stopping()) {
+                phase(&format!("writing {}", shown(&path.display().to_string())));
                 let (w, h) = args.png_size;
                 check_memory("the picture", w.saturating_mul(h).saturating_mul(16), limit)?;
                 let pic = Picture::render(&mesh, w, h, &caption(&p.name, d, topo))?;
@@ -477,7 +649,7 @@ fn run_in_pool(p: &Problem, args: &TraceArgs, threads: usize) -> Result<()> {
         .out
         .iter()
         .chain(&args.png)
-        .filter(|f| !written.contains(f))
+        .filter(|f| f.as_os_str() != "-" && !written.contains(f))
         .map(|f| f.display().to_string())
         .collect();
     let per_s = if st.elapsed_s > 0.0 {
@@ -485,6 +657,7 @@ fn run_in_pool(p: &Problem, args: &TraceArgs, threads: usize) -> Result<()> {
     } else {
         0.0
     };
+    let signal = signals::received();
     if let Some(path) = &args.report {
         let backend = match &gpu_oracle {
             Some(o) => BackendInfo::of_gpu(o),
@@ -508,40 +681,55 @@ fn run_in_pool(p: &Problem, args: &TraceArgs, threads: usize) -> Result<()> {
             .or_else(|| empty.clone());
         report.complete &= failure.is_none() && empty.is_none();
         report.not_written = not_written.clone();
+        if let Some(sig) = signal {
+            report.complete = false;
+            report.stopped.get_or_insert_with(|| "interrupted".into());
+            report.signal = Some(signals::name(sig));
+        }
         if let Some((c, t, topo_s)) = &complex {
             report = report.with_complex(
                 ComplexReport::new(c, t, *topo_s, &args.project),
                 t.components,
             );
         }
+        phase(&format!("writing {}", shown(&path.display().to_string())));
         write_atomic(path, |w| writeln!(w, "{}", report.to_json()))?;
         written.push(path.clone());
     }
     if !args.quiet {
+        // With the sample on standard output, the summary goes to standard error.
+        let to_stderr = plan.outs.iter().any(|o| o.stdout);
+        let line = |text: String| {
+            if to_stderr {
+                eprintln!("{text}");
+            } else {
+                say!("{text}");
+            }
+        };
         let m = d - k;
-        println!(
+        line(format!(
             "{}: {n} crossed {k}-simplices ({m}-manifold in R^{d}, {}, edge {}), {} component{}, \
-             in {:.3} s ({:.0} simplices/s, {threads} thread{}), peak {:.1} MiB ({:.0} B/simplex)",
-            p.name,
+             in {:.3} s ({:.0} simplices/s, {threads} thread{}), peak {} ({:.0} B/simplex)",
+            shown(&p.name),
             tri.kind().name(),
-            tri.edge(),
+            num(tri.edge()),
             st.components,
             if st.components == 1 { "" } else { "s" },
             st.elapsed_s,
             per_s,
             if threads == 1 { "" } else { "s" },
-            trace_peak as f64 / (1 << 20) as f64,
+            memory::human_bytes(trace_peak as u64),
             if n > 0 {
                 trace_peak as f64 / n as f64
             } else {
                 0.0
             },
-        );
+        ));
         if let Some((c, t, topo_s)) = &complex {
-            println!("{}", summary(t, c.stats.elapsed_s + topo_s));
+            line(summary(t, c.stats.elapsed_s + topo_s));
         }
         for f in &written {
-            println!("wrote {}", f.display());
+            line(format!("wrote {}", shown(&f.display().to_string())));
         }
     }
     let unwritten = if not_written.is_empty() {
@@ -549,6 +737,23 @@ fn run_in_pool(p: &Problem, args: &TraceArgs, threads: usize) -> Result<()> {
     } else {
         format!("; not written: {}", not_written.join(", "))
     };
+    let kept = |n: usize| {
+        format!(
+            "the {n} simplices found were kept{}{unwritten}",
+            if written.is_empty() {
+                ""
+            } else {
+                " and written"
+            }
+        )
+    };
+    if let Some(sig) = signal {
+        return Err(Error::Trace(format!(
+            "stopped by {}; {}, the report says complete: false",
+            signals::name(sig),
+            kept(n)
+        )));
+    }
     if let Some(why) = empty {
         return Err(Error::Trace(format!("{why}{unwritten}")));
     }
@@ -559,14 +764,7 @@ fn run_in_pool(p: &Problem, args: &TraceArgs, threads: usize) -> Result<()> {
         return Err(e);
     }
     if let Some(stop) = &st.stopped {
-        return Err(Error::Trace(format!(
-            "{stop}; the {n} simplices found so far were kept{}{unwritten}",
-            if written.is_empty() {
-                ""
-            } else {
-                " and written"
-            }
-        )));
+        return Err(Error::Trace(format!("{stop}; {}", kept(n))));
     }
     Ok(())
 }

@@ -1,5 +1,6 @@
 //! Construction of the cell complex: cofacets sorted into levels, then clipping.
 
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Instant;
 
 use rayon::prelude::*;
@@ -16,14 +17,19 @@ struct RawLevel {
     mixed: Vec<bool>,
 }
 
-pub(super) fn build(s: &Sample, domain: &Domain, max_memory: u64) -> Result<Complex> {
+pub(super) fn build(
+    s: &Sample,
+    domain: &Domain,
+    max_memory: u64,
+    cancel: Option<&AtomicBool>,
+) -> Result<Complex> {
     let start = Instant::now();
     let codec = s.codec();
     let (d, k) = (codec.ambient_dim(), codec.simplex_dim());
     // Cofaces reach one lattice step beyond their faces: one more bit keeps them encodable.
     let bits = (codec.coord_bits() + 1).min(32);
     let words = KeyCodec::new(d, d, bits)?.words().max(codec.words());
-    let (raw, defects) = with_width!(words, raw_levels(s, bits, max_memory))?;
+    let (raw, defects) = with_width!(words, raw_levels(s, bits, max_memory, cancel))?;
     let mut c = clip(s, domain, raw, d, d - k);
     c.stats = ComplexStats {
         defects,
@@ -38,6 +44,7 @@ fn raw_levels<const W: usize>(
     s: &Sample,
     bits: u32,
     max_memory: u64,
+    cancel: Option<&AtomicBool>,
 ) -> Result<(Vec<RawLevel>, usize)> {
     let codec = *s.codec();
     let (d, k) = (codec.ambient_dim(), codec.simplex_dim());
@@ -55,6 +62,9 @@ fn raw_levels<const W: usize>(
     let mut levels = Vec::with_capacity(d - k);
     let mut defects = 0;
     for j in 1..=d - k {
+        if cancel.is_some_and(|c| c.load(Ordering::Relaxed)) {
+            return Err(Error::Trace("interrupted".into()));
+        }
         let cj = KeyCodec::new(d, k + j, bits)?;
         // The pairs are the peak: refuse up front rather than exhaust memory.
         let count: u64 = prev
@@ -72,10 +82,10 @@ fn raw_levels<const W: usize>(
             + count * (std::mem::size_of::<([u64; W], u32)>() + W * 8 + 5) as u64;
         if need > max_memory {
             return Err(Error::Trace(format!(
-                "the cell complex needs about {:.1} MiB for its {j}-cells, over the memory limit \
-                 of {:.1} MiB (raise --max-memory, use a larger edge, or --no-complex)",
-                need as f64 / (1u64 << 20) as f64,
-                max_memory as f64 / (1u64 << 20) as f64
+                "the cell complex needs about {} for its {j}-cells, over the memory limit of {} \
+                 (raise --max-memory, use a larger edge, or --no-complex)",
+                crate::memory::human_bytes(need),
+                crate::memory::human_bytes(max_memory)
             )));
         }
         let mut pairs = cofacet_pairs::<W>(&prev, &prev_codec, &cj)?;

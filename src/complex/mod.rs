@@ -105,7 +105,18 @@ impl Complex {
         bbox: Option<&[[f64; 2]]>,
         max_memory: u64,
     ) -> Result<Self> {
-        build::build(s, &Domain::new(f, bbox), max_memory)
+        build::build(s, &Domain::new(f, bbox), max_memory, None)
+    }
+
+    /// [`Complex::build_within`], stopping with an error between levels once `cancel` is set.
+    pub fn build_cancellable(
+        s: &Sample,
+        f: &dyn ImplicitFunction,
+        bbox: Option<&[[f64; 2]]>,
+        max_memory: u64,
+        cancel: &std::sync::atomic::AtomicBool,
+    ) -> Result<Self> {
+        build::build(s, &Domain::new(f, bbox), max_memory, Some(cancel))
     }
 
     /// Ambient dimension d.

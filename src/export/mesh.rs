@@ -1,6 +1,6 @@
 //! Mesh files: PLY, OBJ, OFF and STL for curves and surfaces, Medit `.mesh`, VTK `.vtu` (for
 //! ParaView, with all d coordinates kept as point data) and NumPy `.npz` (the whole Hasse
-//! diagram). Ambient dimensions above 3 are projected to R^3 by a [`View`], recorded in the
+//! diagram). PLY and VTU are binary unless [`Encoding::Ascii`] is asked for. Ambient dimensions above 3 are projected to R^3 by a [`View`], recorded in the
 //! file.
 
 use std::io::{self, Write};
@@ -17,7 +17,7 @@ use crate::expr::ImplicitFunction;
 /// Mesh file formats.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum MeshFormat {
-    /// Stanford PLY (ASCII): polygons, or edges for curves.
+    /// Stanford PLY (`binary_little_endian`, or ASCII): polygons, or edges for curves.
     Ply,
     /// Wavefront OBJ: polygons, or lines for curves.
     Obj,
@@ -27,8 +27,8 @@ pub enum MeshFormat {
     Stl,
     /// Medit `.mesh` (as the C++ reference writes): edges, triangles or tetrahedra.
     Medit,
-    /// VTK XML unstructured grid (`.vtu`): lines, polygons or tetrahedra, plus the d-D
-    /// coordinates and a boundary flag as point data.
+    /// VTK XML unstructured grid (`.vtu`, raw appended binary data, or ASCII): lines,
+    /// polygons or tetrahedra, plus the d-D coordinates and a boundary flag as point data.
     Vtu,
     /// NumPy `.npz`: vertices (N, d), every level of cells with its facets, and the
     /// polygons, triangles or tetrahedra.
@@ -193,17 +193,35 @@ impl MeshFormat {
     }
 }
 
-/// Writes `mesh` to `path` in `format` (through a temporary file).
+/// How PLY and VTU files hold their numbers (the other formats have one form each).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Encoding {
+    /// Little-endian binary: PLY `binary_little_endian`, VTU raw appended data.
+    #[default]
+    Binary,
+    /// Text.
+    Ascii,
+}
+
+/// Writes `mesh` to `path` in `format` (through a temporary file), binary where the format
+/// has both forms.
 pub fn write_mesh(path: &Path, mesh: &Mesh, format: MeshFormat) -> Result<()> {
+    write_mesh_as(path, mesh, format, Encoding::Binary)
+}
+
+/// [`write_mesh`] with the encoding of PLY and VTU chosen.
+pub fn write_mesh_as(path: &Path, mesh: &Mesh, format: MeshFormat, enc: Encoding) -> Result<()> {
     format.check_holds(mesh.complex.dim(), path)?;
-    write_atomic(path, |w| match format {
-        MeshFormat::Ply => ply(w, mesh),
-        MeshFormat::Obj => obj(w, mesh),
-        MeshFormat::Off => off(w, mesh),
-        MeshFormat::Stl => stl(w, mesh),
-        MeshFormat::Medit => medit(w, mesh),
-        MeshFormat::Vtu => vtu(w, mesh),
-        MeshFormat::Npz => npz(w, mesh),
+    write_atomic(path, |w| match (format, enc) {
+        (MeshFormat::Ply, Encoding::Ascii) => ply(w, mesh),
+        (MeshFormat::Ply, Encoding::Binary) => ply_binary(w, mesh),
+        (MeshFormat::Obj, _) => obj(w, mesh),
+        (MeshFormat::Off, _) => off(w, mesh),
+        (MeshFormat::Stl, _) => stl(w, mesh),
+        (MeshFormat::Medit, _) => medit(w, mesh),
+        (MeshFormat::Vtu, Encoding::Ascii) => vtu(w, mesh),
+        (MeshFormat::Vtu, Encoding::Binary) => vtu_binary(w, mesh),
+        (MeshFormat::Npz, _) => npz(w, mesh),
     })
 }
 
@@ -231,6 +249,52 @@ fn ply(w: &mut impl Write, mesh: &Mesh) -> io::Result<()> {
         }
     } else {
         counted_polygons(w, mesh)?;
+    }
+    Ok(())
+}
+
+/// PLY `binary_little_endian`: the same elements as [`ply`], vertices as doubles, indices as
+/// int32, polygon sizes as uchar.
+fn ply_binary(w: &mut impl Write, mesh: &Mesh) -> io::Result<()> {
+    let curve = mesh.complex.dim() == 1;
+    writeln!(
+        w,
+        "ply\nformat binary_little_endian 1.0\ncomment {}",
+        mesh.header()
+    )?;
+    writeln!(w, "element vertex {}", mesh.vertex_count())?;
+    writeln!(w, "property double x\nproperty double y\nproperty double z")?;
+    if curve {
+        writeln!(w, "element edge {}", mesh.complex.level(1).len())?;
+        writeln!(w, "property int vertex1\nproperty int vertex2")?;
+    } else {
+        writeln!(
+            w,
+            "element face {}",
+            mesh.surface.as_ref().map_or(0, Surface::len)
+        )?;
+        writeln!(w, "property list uchar int vertex_indices")?;
+    }
+    writeln!(w, "end_header")?;
+    for x in &mesh.xyz {
+        w.write_all(&x.to_le_bytes())?;
+    }
+    let index = |v: u32| i32::try_from(v).map_err(|_| io::Error::other("PLY: over 2^31 vertices"));
+    if curve {
+        for e in mesh.edges() {
+            for &v in e {
+                w.write_all(&index(v)?.to_le_bytes())?;
+            }
+        }
+    } else {
+        for p in mesh.polygons() {
+            let n = u8::try_from(p.len())
+                .map_err(|_| io::Error::other("PLY: a polygon of over 255 vertices"))?;
+            w.write_all(&[n])?;
+            for &v in p {
+                w.write_all(&index(v)?.to_le_bytes())?;
+            }
+        }
     }
     Ok(())
 }
@@ -435,6 +499,104 @@ fn vtu(w: &mut impl Write, mesh: &Mesh) -> io::Result<()> {
         w,
         "\n</DataArray>\n</Cells>\n</Piece>\n</UnstructuredGrid>\n</VTKFile>"
     )
+}
+
+/// VTU with its arrays as raw little-endian binary in one `AppendedData` block, each array a
+/// UInt64 byte count and its bytes (the layout ParaView and meshio read).
+fn vtu_binary(w: &mut impl Write, mesh: &Mesh) -> io::Result<()> {
+    let c = mesh.complex;
+    let d = c.ambient_dim();
+    let n = mesh.vertex_count();
+    let (kind, cells): (u8, Vec<&[u32]>) = match c.dim() {
+        1 => (3, mesh.edges().collect()),
+        2 => (7, mesh.polygons().collect()),
+        _ => (10, mesh.tetrahedra.iter().map(|t| &t[..]).collect()),
+    };
+    let links: usize = cells.iter().map(|c| c.len()).sum();
+    // Indices as Int32 where they fit (half the size), else Int64.
+    let (int, width) = if links < i32::MAX as usize {
+        ("Int32", 4)
+    } else {
+        ("Int64", 8)
+    };
+    // (type, name, components, bytes) of each array, in file order.
+    let arrays: [(&str, &str, usize, usize); 6] = [
+        ("Float64", "coordinates", d, 8 * n * d),
+        ("UInt8", "boundary", 1, n),
+        ("Float64", "", 3, 8 * n * 3),
+        (int, "connectivity", 1, width * links),
+        (int, "offsets", 1, width * cells.len()),
+        ("UInt8", "types", 1, cells.len()),
+    ];
+    let index = |w: &mut dyn Write, v: i64| {
+        if width == 4 {
+            w.write_all(&(v as i32).to_le_bytes())
+        } else {
+            w.write_all(&v.to_le_bytes())
+        }
+    };
+    let mut offset = 0;
+    let mut tag = |i: usize| {
+        let (ty, name, comps, bytes) = arrays[i];
+        let name = if name.is_empty() {
+            String::new()
+        } else {
+            format!(" Name=\"{name}\"")
+        };
+        let s = format!(
+            "<DataArray type=\"{ty}\"{name} NumberOfComponents=\"{comps}\" \
+             format=\"appended\" offset=\"{offset}\"/>"
+        );
+        offset += 8 + bytes;
+        s
+    };
+    writeln!(w, "<?xml version=\"1.0\"?>\n<!-- {} -->", mesh.header())?;
+    writeln!(
+        w,
+        "<VTKFile type=\"UnstructuredGrid\" version=\"1.0\" byte_order=\"LittleEndian\" \
+         header_type=\"UInt64\">\n<UnstructuredGrid>"
+    )?;
+    writeln!(
+        w,
+        "<Piece NumberOfPoints=\"{n}\" NumberOfCells=\"{}\">",
+        cells.len()
+    )?;
+    writeln!(w, "<PointData>\n{}\n{}\n</PointData>", tag(0), tag(1))?;
+    writeln!(w, "<Points>\n{}\n</Points>", tag(2))?;
+    writeln!(w, "<Cells>\n{}\n{}\n{}\n</Cells>", tag(3), tag(4), tag(5))?;
+    writeln!(
+        w,
+        "</Piece>\n</UnstructuredGrid>\n<AppendedData encoding=\"raw\">"
+    )?;
+    w.write_all(b"_")?;
+    let size = |w: &mut dyn Write, i: usize| w.write_all(&(arrays[i].3 as u64).to_le_bytes());
+    size(w, 0)?;
+    for x in c.points() {
+        w.write_all(&x.to_le_bytes())?;
+    }
+    size(w, 1)?;
+    for i in 0..n {
+        w.write_all(&[u8::from(i >= c.interior_vertex_count())])?;
+    }
+    size(w, 2)?;
+    for x in &mesh.xyz {
+        w.write_all(&x.to_le_bytes())?;
+    }
+    size(w, 3)?;
+    for cell in &cells {
+        for &v in *cell {
+            index(w, i64::from(v))?;
+        }
+    }
+    size(w, 4)?;
+    let mut end = 0i64;
+    for cell in &cells {
+        end += cell.len() as i64;
+        index(w, end)?;
+    }
+    size(w, 5)?;
+    w.write_all(&vec![kind; cells.len()])?;
+    writeln!(w, "\n</AppendedData>\n</VTKFile>")
 }
 
 /// One `.npy` array in memory.

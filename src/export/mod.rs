@@ -14,31 +14,36 @@ pub mod picture;
 pub mod plot;
 pub mod projection;
 pub mod raster;
+pub mod safe;
 
-pub use mesh::{write_mesh, Mesh, MeshFormat};
+pub use mesh::{write_mesh, write_mesh_as, Encoding, Mesh, MeshFormat};
 pub use projection::{Projection, View};
 
-/// Writes `path` through `body` into a temporary file beside it, then renames it into place.
+/// Writes `path` through `body` into a temporary file of its own beside it (see
+/// [`safe::check_target`] for what may be replaced), then renames it into place.
 pub fn write_atomic(
     path: &Path,
     body: impl FnOnce(&mut BufWriter<File>) -> std::io::Result<()>,
 ) -> Result<()> {
     let io = |e: std::io::Error| Error::Io(format!("{}: {e}", path.display()));
+    safe::check_target(path)?;
     if let Some(dir) = path.parent().filter(|p| !p.as_os_str().is_empty()) {
         std::fs::create_dir_all(dir).map_err(io)?;
     }
-    let mut tmp = path.as_os_str().to_owned();
-    tmp.push(".partial");
-    let tmp = std::path::PathBuf::from(tmp);
-    let file = File::create(&tmp).map_err(io)?;
-    let mut w = BufWriter::new(file);
+    let (tmp, file) = safe::create_partial(path).map_err(io)?;
+    let mut w = BufWriter::with_capacity(1 << 20, file);
     let written = body(&mut w).and_then(|()| w.flush());
-    if let Err(e) = written {
-        let _ = std::fs::remove_file(&tmp);
-        return Err(io(e));
-    }
     drop(w);
-    std::fs::rename(&tmp, path).map_err(io)
+    // The target may have turned into something else meanwhile.
+    let done = written
+        .map_err(io)
+        .and_then(|()| safe::check_target(path))
+        .and_then(|()| std::fs::rename(&tmp, path).map_err(io));
+    if done.is_err() {
+        let _ = std::fs::remove_file(&tmp);
+    }
+    safe::release_partial(&tmp);
+    done
 }
 
 /// Sample formats, chosen by file extension.
@@ -110,25 +115,32 @@ impl OutputFormat {
 
 /// Writes the points of S, one per line, in full f64 precision (shortest round-trip form).
 pub fn write_sample(path: &Path, sample: &Sample, format: SampleFormat) -> Result<()> {
+    write_atomic(path, |w| write_sample_to(w, sample, format))
+}
+
+/// [`write_sample`] into any writer (standard output for `--out -`).
+pub fn write_sample_to(
+    w: &mut impl Write,
+    sample: &Sample,
+    format: SampleFormat,
+) -> std::io::Result<()> {
     let d = sample.ambient_dim();
     let sep = match format {
         SampleFormat::Csv => ",",
         SampleFormat::Xyz => " ",
     };
-    write_atomic(path, |w| {
-        if format == SampleFormat::Csv {
-            let header: Vec<String> = (1..=d).map(|i| format!("x{i}")).collect();
-            writeln!(w, "{}", header.join(","))?;
-        }
-        for p in sample.points().chunks_exact(d) {
-            for (i, v) in p.iter().enumerate() {
-                if i > 0 {
-                    w.write_all(sep.as_bytes())?;
-                }
-                write!(w, "{v:?}")?;
+    if format == SampleFormat::Csv {
+        let header: Vec<String> = (1..=d).map(|i| format!("x{i}")).collect();
+        writeln!(w, "{}", header.join(","))?;
+    }
+    for p in sample.points().chunks_exact(d) {
+        for (i, v) in p.iter().enumerate() {
+            if i > 0 {
+                w.write_all(sep.as_bytes())?;
             }
-            writeln!(w)?;
+            write!(w, "{v:?}")?;
         }
-        Ok(())
-    })
+        writeln!(w)?;
+    }
+    Ok(())
 }

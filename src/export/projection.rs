@@ -19,6 +19,12 @@ pub enum Projection {
 impl Projection {
     /// Parses `pca`, `auto`, or a list of 1-based coordinates such as `1,2,4` or `x1,x2,x4`.
     pub fn parse(s: &str, d: usize) -> Result<Self> {
+        if s.len() > 64 || s.chars().any(char::is_control) {
+            return Err(Error::Spec(format!(
+                "projection {:?}...: expected pca, auto, or up to 3 coordinates such as 1,2,3",
+                s.chars().take(24).collect::<String>()
+            )));
+        }
         match s.trim() {
             "auto" => return Ok(Projection::Auto),
             "pca" => return Ok(Projection::Pca),
@@ -41,6 +47,11 @@ impl Projection {
         if axes.is_empty() || axes.len() > 3 {
             return Err(Error::Spec(format!(
                 "projection '{s}': give 1 to 3 coordinates"
+            )));
+        }
+        if (1..axes.len()).any(|i| axes[..i].contains(&axes[i])) {
+            return Err(Error::Spec(format!(
+                "projection '{s}': a coordinate is repeated; give distinct ones such as 1,2,3"
             )));
         }
         Ok(Projection::Axes(axes))

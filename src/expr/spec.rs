@@ -31,7 +31,7 @@ pub struct Spec {
     #[serde(default)]
     pub seeds: Vec<Vec<f64>>,
     /// Per-coordinate [lo, hi] box, for seed search, scans and non-compact manifolds.
-    #[serde(rename = "box")]
+    #[serde(rename = "box", default, deserialize_with = "box_rows")]
     pub bbox: Option<Vec<[f64; 2]>>,
     /// Triangulation settings.
     pub triangulation: Option<TriangulationSpec>,
@@ -78,6 +78,27 @@ fn content_start(text: &str, lit: &toml::Spanned<String>) -> Option<(usize, usiz
     let line = before.matches('\n').count() + 1;
     let column = before.rsplit('\n').next().map_or(0, |l| l.chars().count()) + 1;
     Some((line, column))
+}
+
+/// Box rows of exactly two numbers (serde alone would ignore extra ones).
+fn box_rows<'de, D: serde::Deserializer<'de>>(
+    de: D,
+) -> std::result::Result<Option<Vec<[f64; 2]>>, D::Error> {
+    let rows: Option<Vec<Vec<f64>>> = Deserialize::deserialize(de)?;
+    rows.map(|rows| {
+        rows.iter()
+            .enumerate()
+            .map(|(i, r)| match r[..] {
+                [lo, hi] => Ok([lo, hi]),
+                _ => Err(serde::de::Error::custom(format!(
+                    "box row {} has {} numbers: give [lo, hi]",
+                    i + 1,
+                    r.len()
+                ))),
+            })
+            .collect()
+    })
+    .transpose()
 }
 
 /// `ambient_dim` of a spec that leaves it out: the count of `variables`.

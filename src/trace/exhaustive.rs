@@ -33,7 +33,17 @@ pub(crate) fn scan<const W: usize>(
     bbox: &[[f64; 2]],
 ) -> Result<(Table<W>, TraceStats)> {
     let k = ctx.k;
-    let grid = grid::build(ctx, bbox)?;
+    let grid = match grid::build(ctx, bbox) {
+        // Interrupted while f is evaluated on the grid: nothing found yet, kept as such.
+        Err(_) if ctx.interrupted() => {
+            let stats = TraceStats {
+                stopped: Some(StopReason::Interrupted),
+                ..TraceStats::default()
+            };
+            return Ok((Table::new(), stats));
+        }
+        g => g?,
+    };
     let mut stats = TraceStats {
         vertices: grid.len() as u64,
         ..TraceStats::default()

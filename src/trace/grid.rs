@@ -181,10 +181,10 @@ fn near_rows(ctx: &TraceContext, near: &[[f64; 2]]) -> Result<ScanGrid> {
     if !(bytes <= ctx.max_memory as f64 && estimate < u32::MAX as f64) {
         return Err(Error::Trace(format!(
             "the exhaustive scan of this box needs about {estimate:.3e} lattice vertices, \
-             about {:.1} GiB, over the memory limit of {:.1} GiB or the 2^32 vertex cap: use \
-             a smaller box or a larger edge",
-            bytes / (1u64 << 30) as f64,
-            ctx.max_memory as f64 / (1u64 << 30) as f64
+             about {}, over the memory limit of {} or the 2^32 vertex cap: use a smaller box \
+             or a larger edge",
+            crate::memory::human_bytes(bytes.min(u64::MAX as f64) as u64),
+            crate::memory::human_bytes(ctx.max_memory)
         )));
     }
     zero[0] = 1;
@@ -235,10 +235,10 @@ fn near_rows(ctx: &TraceContext, near: &[[f64; 2]]) -> Result<ScanGrid> {
     let need = total as u64 * (ctx.k as u64 * 8 + 12) + spans.len() as u64 * 32;
     if need > ctx.max_memory {
         return Err(Error::Trace(format!(
-            "the exhaustive scan of this box needs {total} lattice vertices, about {:.1} GiB, \
-             over the memory limit of {:.1} GiB: use a smaller box or a larger edge",
-            need as f64 / (1u64 << 30) as f64,
-            ctx.max_memory as f64 / (1u64 << 30) as f64
+            "the exhaustive scan of this box needs {total} lattice vertices, about {}, over \
+             the memory limit of {}: use a smaller box or a larger edge",
+            crate::memory::human_bytes(need),
+            crate::memory::human_bytes(ctx.max_memory)
         )));
     }
     let mut offset = 0;

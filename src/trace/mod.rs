@@ -143,10 +143,10 @@ impl std::fmt::Display for StopReason {
                 boxed,
             } => write!(
                 f,
-                "stopped before passing the memory limit: the next step needs {:.1} MiB, the \
-                 limit is {:.1} MiB (raise --max-memory, or use a larger edge or {})",
-                *needed as f64 / (1u64 << 20) as f64,
-                *limit as f64 / (1u64 << 20) as f64,
+                "stopped before passing the memory limit: the next step needs {}, the limit is \
+                 {} (raise --max-memory, or use a larger edge or {})",
+                crate::memory::human_bytes(*needed),
+                crate::memory::human_bytes(*limit),
                 if *boxed {
                     "a smaller box"
                 } else {

@@ -137,6 +137,7 @@ impl<const W: usize> Engine<'_, W> {
                 .collect();
             let projected: Vec<Vec<f64>> = starts
                 .par_iter()
+                .filter(|_| !self.ctx.interrupted())
                 .filter_map(|x| newton_project(f, x, SEED_TOLERANCE).ok())
                 .filter(|p| self.ctx.domain.contains(p))
                 .collect();
@@ -154,6 +155,9 @@ impl<const W: usize> Engine<'_, W> {
             drop(starts);
             self.stats.seed_points += projected.len() as u64;
             for p in projected {
+                if self.ctx.interrupted() && self.stats.stopped.is_none() {
+                    self.stats.stopped = Some(super::StopReason::Interrupted);
+                }
                 if self.stats.stopped.is_some() {
                     break;
                 }

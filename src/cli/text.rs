@@ -1,0 +1,131 @@
+//! Text the command line echoes: numbers in a short form, user text cut and escaped, and
+//! standard output that tolerates a closed pipe.
+
+use std::fmt::Write as _;
+
+/// Longest run of non-space characters echoed whole.
+const MAX_WORD: usize = 64;
+/// Longest message echoed whole, in characters.
+const MAX_MESSAGE: usize = 4000;
+
+/// `x` as the shortest text that reads back to it, with an exponent when it is very large or
+/// very small (`1e300`, not 301 digits).
+pub fn num(x: f64) -> String {
+    let a = x.abs();
+    if x != 0.0 && a.is_finite() && !(1e-4..1e7).contains(&a) {
+        format!("{x:e}")
+    } else {
+        format!("{x}")
+    }
+}
+
+/// `s` fit to print: control characters (but newlines) and NUL escaped, runs of more than
+/// 64 non-space characters cut in the middle, the whole cut after 4000 characters.
+pub fn shown(s: &str) -> String {
+    let mut out = String::with_capacity(s.len().min(MAX_MESSAGE + 64));
+    for (li, line) in s.split('\n').enumerate() {
+        if li > 0 {
+            out.push('\n');
+        }
+        let mut word = String::new();
+        let mut word_len = 0;
+        for c in line.chars() {
+            if c == ' ' {
+                flush_word(&mut out, &word, word_len);
+                word.clear();
+                word_len = 0;
+                out.push(' ');
+            } else {
+                word_len += 1;
+                if word_len > MAX_WORD {
+                    // Only the ends of a long word are shown: keep its last few characters.
+                    if word.chars().count() > 2 * MAX_WORD {
+                        let head: String = word.chars().take(24).collect();
+                        let tail: Vec<char> = word.chars().rev().take(8).collect();
+                        word = head + &tail.into_iter().rev().collect::<String>();
+                    }
+                }
+                if c.is_control() {
+                    word.extend(c.escape_debug());
+                } else {
+                    word.push(c);
+                }
+            }
+        }
+        flush_word(&mut out, &word, word_len);
+    }
+    let n = out.chars().count();
+    if n > MAX_MESSAGE {
+        let mut cut: String = out.chars().take(MAX_MESSAGE).collect();
+        let _ = write!(cut, " ... ({} more characters)", n - MAX_MESSAGE);
+        return cut;
+    }
+    out
+}
+
+fn flush_word(out: &mut String, word: &str, len: usize) {
+    if len <= MAX_WORD {
+        out.push_str(word);
+        return;
+    }
+    let chars: Vec<char> = word.chars().collect();
+    out.extend(&chars[..24]);
+    let _ = write!(out, "...[{len} characters]...");
+    out.extend(&chars[chars.len() - 8..]);
+}
+
+/// `println!` that goes quiet once standard output is closed (`isomesh check | head`).
+macro_rules! say {
+    ($($arg:tt)*) => {
+        $crate::cli::text::say_line(format_args!($($arg)*))
+    };
+}
+pub(crate) use say;
+
+/// Set once standard output is found closed.
+static CLOSED: std::sync::atomic::AtomicBool = std::sync::atomic::AtomicBool::new(false);
+
+/// Writes one line to standard output; once the reader is gone (a closed pipe), the rest is
+/// dropped quietly and the run goes on to its own exit status.
+pub fn say_line(args: std::fmt::Arguments) {
+    use std::io::Write;
+    use std::sync::atomic::Ordering;
+    if CLOSED.load(Ordering::Relaxed) {
+        return;
+    }
+    let mut out = std::io::stdout().lock();
+    if out
+        .write_fmt(args)
+        .and_then(|()| out.write_all(b"\n"))
+        .is_err()
+    {
+        CLOSED.store(true, Ordering::Relaxed);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn numbers_stay_short() {
+        assert_eq!(num(1e300), "1e300");
+        assert_eq!(num(0.25), "0.25");
+        assert_eq!(num(-2.5e-9), "-2.5e-9");
+        assert_eq!(num(123456789.0), "1.23456789e8");
+        assert_eq!(num(0.0), "0");
+    }
+
+    #[test]
+    fn user_text_is_cut_and_escaped() {
+        let long = "a".repeat(200_000);
+        let s = shown(&format!("unknown name '{long}'"));
+        assert!(s.len() < 200, "{s}");
+        assert!(s.contains("200002 characters"), "{s}");
+        let s = shown("bad\0byte\x07 here\nline two");
+        assert!(!s.contains('\0') && !s.contains('\x07'), "{s:?}");
+        assert!(s.contains("\\0") && s.contains("line two"), "{s}");
+        let huge = "a b ".repeat(5000);
+        assert!(shown(&huge).contains("more characters"));
+    }
+}

@@ -1,0 +1,188 @@
+//! What the command line prints: the sample on standard output, short numbers, user text cut
+//! and escaped, sizes in a unit that shows them, a closed pipe.
+
+mod common;
+
+use std::io::Read;
+use std::process::Stdio;
+
+use common::{command, isomesh, stderr, Scratch};
+
+#[test]
+fn out_dash_writes_the_sample_to_standard_output() {
+    let dir = Scratch::new("stdout");
+    for (format, sep, header) in [
+        (None, ',', true),
+        (Some("xyz"), ' ', false),
+        (Some("csv"), ',', true),
+    ] {
+        let mut args = vec![
+            "trace", "--preset", "circle", "--out", "-", "--out", "f.csv",
+        ];
+        if let Some(f) = format {
+            args.extend(["--format", f]);
+        }
+        let o = isomesh(&dir.0, &args);
+        assert!(o.status.success(), "{}", stderr(&o));
+        let out = String::from_utf8(o.stdout.clone()).unwrap();
+        let mut lines = out.lines();
+        if header {
+            assert_eq!(lines.next(), Some("x1,x2"));
+        }
+        let rows: Vec<&str> = lines.collect();
+        assert!(rows.len() > 50, "{out}");
+        for r in &rows {
+            let v: Vec<f64> = r.split(sep).map(|t| t.parse().unwrap()).collect();
+            assert_eq!(v.len(), 2, "{r}");
+            assert!(((v[0] * v[0] + v[1] * v[1]).sqrt() - 1.0).abs() < 0.01);
+        }
+        // The same points as the file; the summary went to standard error.
+        let file = std::fs::read_to_string(dir.path("f.csv")).unwrap();
+        assert_eq!(file.lines().count() - usize::from(header), rows.len());
+        assert!(stderr(&o).contains("wrote f.csv"), "{}", stderr(&o));
+        assert!(!dir.path("-").exists());
+    }
+}
+
+#[test]
+fn huge_numbers_print_short() {
+    let dir = Scratch::new("numbers");
+    for (edge, shown) in [
+        ("1e300", "1e300"),
+        ("1e-30", "1e-30"),
+        ("123456789012", "1.23456789012e11"),
+    ] {
+        std::fs::write(
+            dir.path("s.toml"),
+            format!(
+                "ambient_dim = 2\nequations = [\"x1^2 + x2^2 - 1\"]\n[triangulation]\nedge = {edge}\n"
+            ),
+        )
+        .unwrap();
+        let o = isomesh(&dir.0, &["check", "s.toml"]);
+        let all = String::from_utf8_lossy(&o.stdout).into_owned() + &stderr(&o);
+        assert!(all.contains(shown), "{edge}: {all}");
+        let longest = all.lines().map(str::len).max().unwrap_or(0);
+        assert!(longest < 200, "{edge}: a line of {longest} characters");
+    }
+    let o = isomesh(
+        &dir.0,
+        &["trace", "--preset", "circle", "--edge", "1e300", "-q"],
+    );
+    assert!(stderr(&o).len() < 1000, "{}", stderr(&o));
+}
+
+#[test]
+fn echoed_user_text_is_cut_and_escaped() {
+    let dir = Scratch::new("user-text");
+    let long = "q".repeat(200_000);
+    let cases = [
+        format!("x1^2 + {long} - 1"),
+        format!("x1^2 + x2^2 - {long}(x1)"),
+        "x1 + \u{0}".to_string(),
+        "x1 + \u{7}\u{1b}[31m".to_string(),
+    ];
+    for eq in &cases {
+        let toml = format!("ambient_dim = 2\nequations = [{}]\n", toml_string(eq));
+        std::fs::write(dir.path("s.toml"), toml).unwrap();
+        let o = isomesh(&dir.0, &["check", "s.toml"]);
+        assert!(!o.status.success());
+        let e = stderr(&o);
+        assert!(e.len() < 2000, "{} bytes of message", e.len());
+        assert!(
+            !e.contains('\0') && !e.contains('\u{7}') && !e.contains('\u{1b}'),
+            "{e:?}"
+        );
+    }
+    // Flag values too (an argument may hold at most 128 KiB).
+    let long = "q".repeat(100_000);
+    let o = isomesh(&dir.0, &["trace", "--preset", &long]);
+    assert!(stderr(&o).len() < 2000);
+    let o = isomesh(
+        &dir.0,
+        &[
+            "trace",
+            "--preset",
+            "circle",
+            "--project",
+            &format!("1,{long}"),
+        ],
+    );
+    assert!(!o.status.success());
+    assert!(stderr(&o).len() < 2000);
+    let o = isomesh(
+        &dir.0,
+        &[
+            "trace", "--preset", "circle", "--format", "a\u{7}b", "--out", "x.csv",
+        ],
+    );
+    assert!(
+        !o.status.success() && !stderr(&o).contains('\u{7}'),
+        "{}",
+        stderr(&o)
+    );
+}
+
+/// `s` as a TOML basic string.
+fn toml_string(s: &str) -> String {
+    let mut out = String::from("\"");
+    for c in s.chars() {
+        match c {
+            '"' => out.push_str("\\\""),
+            '\\' => out.push_str("\\\\"),
+            c if c.is_control() => out.push_str(&format!("\\u{:04X}", c as u32)),
+            c => out.push(c),
+        }
+    }
+    out.push('"');
+    out
+}
+
+#[test]
+fn memory_messages_use_a_unit_that_shows_the_size() {
+    let dir = Scratch::new("units");
+    for limit in ["200K", "600K"] {
+        let o = isomesh(
+            &dir.0,
+            &[
+                "trace",
+                "--preset",
+                "sphere",
+                "--edge",
+                "0.05",
+                "--max-memory",
+                limit,
+                "-q",
+            ],
+        );
+        let e = stderr(&o);
+        assert!(!o.status.success(), "{limit}: {e}");
+        assert!(e.contains("KiB") || e.contains("MiB"), "{limit}: {e}");
+        assert!(!e.contains("0.00 GiB"), "{limit}: {e}");
+    }
+}
+
+#[test]
+fn a_closed_pipe_ends_output_quietly() {
+    let dir = Scratch::new("pipe");
+    for args in [
+        &["check", "--preset", "torus"][..],
+        &["presets"][..],
+        &["trace", "--preset", "circle", "--out", "-"][..],
+    ] {
+        let mut child = command(&dir.0, args)
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped())
+            .spawn()
+            .unwrap();
+        // Read one byte, then close the pipe, as `| head -c 1` does.
+        let mut out = child.stdout.take().unwrap();
+        let mut byte = [0u8; 1];
+        let _ = out.read(&mut byte);
+        drop(out);
+        let o = child.wait_with_output().unwrap();
+        let e = stderr(&o);
+        assert!(!e.contains("panicked"), "{args:?}: {e}");
+        assert!(o.status.code().is_some(), "{args:?}: killed by a signal");
+    }
+}

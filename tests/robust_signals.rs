@@ -1,0 +1,236 @@
+//! SIGINT, SIGTERM and SIGHUP at each phase of a run: the first stops it between steps with
+//! the partial sample and a report saying `complete: false`, no temporary file left, and exit
+//! status 128 + the signal's number; a second aborts at once.
+#![cfg(unix)]
+
+mod common;
+
+use std::io::{BufRead, BufReader};
+use std::process::{Child, ExitStatus};
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
+
+use common::{report, spawn, wait_for, Scratch};
+
+/// Generous: the machine may be loaded.
+const PATIENCE: Duration = Duration::from_secs(60);
+
+/// A running isomesh and the lines of its standard error so far.
+struct Run {
+    child: Child,
+    lines: Arc<Mutex<Vec<String>>>,
+}
+
+impl Run {
+    fn start(dir: &Scratch, args: &[&str]) -> Run {
+        let mut child = spawn(&dir.0, args);
+        let lines = Arc::new(Mutex::new(Vec::new()));
+        let err = child.stderr.take().unwrap();
+        let sink = lines.clone();
+        std::thread::spawn(move || {
+            for l in BufReader::new(err).lines().map_while(Result::ok) {
+                sink.lock().unwrap().push(l);
+            }
+        });
+        Run { child, lines }
+    }
+
+    /// Waits until a line of standard error contains `text`.
+    fn wait_line(&self, text: &str) {
+        let seen = wait_for(PATIENCE, || {
+            self.lines.lock().unwrap().iter().any(|l| l.contains(text))
+        });
+        assert!(
+            seen,
+            "no line with {text:?}: {:?}",
+            self.lines.lock().unwrap()
+        );
+    }
+
+    fn signal(&self, name: &str) {
+        let ok = std::process::Command::new("kill")
+            .args([&format!("-{name}"), &self.child.id().to_string()])
+            .status()
+            .unwrap();
+        assert!(ok.success());
+    }
+
+    /// The exit status, and how long it took to come.
+    fn wait(mut self) -> (ExitStatus, Duration, Vec<String>) {
+        let start = Instant::now();
+        let mut status = None;
+        let exited = wait_for(PATIENCE, || {
+            status = self.child.try_wait().unwrap();
+            status.is_some()
+        });
+        if !exited {
+            let _ = self.child.kill();
+            panic!("did not stop: {:?}", self.lines.lock().unwrap());
+        }
+        // Let the reader thread take the last lines.
+        std::thread::sleep(Duration::from_millis(50));
+        let lines = self.lines.lock().unwrap().clone();
+        (status.unwrap(), start.elapsed(), lines)
+    }
+}
+
+fn number(name: &str) -> i32 {
+    match name {
+        "INT" => 2,
+        "TERM" => 15,
+        "HUP" => 1,
+        _ => unreachable!(),
+    }
+}
+
+/// Sends `sig` once `line` appears and checks the stop: exit status, the report's
+/// `complete: false`, stop reason and signal, the sample on disk, no `.partial` file.
+fn stop_at(name: &str, args: &[&str], line: &str, sig: &str) -> serde_json::Value {
+    let dir = Scratch::new(&format!("signal-{name}-{sig}"));
+    std::fs::write(
+        dir.path("noseed.toml"),
+        "ambient_dim = 3\nequations = [\"x1^2 + x2^2 + x3^2 - 1\"]\nbox = [[-1.5, 1.5], \
+         [-1.5, 1.5], [-1.5, 1.5]]\n",
+    )
+    .unwrap();
+    let mut all = args.to_vec();
+    all.extend(["-v", "--out", "s.csv", "--report", "r.json"]);
+    let run = Run::start(&dir, &all);
+    run.wait_line(line);
+    run.signal(sig);
+    let (status, _, lines) = run.wait();
+    assert_eq!(
+        status.code(),
+        Some(128 + number(sig)),
+        "{name} {sig}: {lines:?}"
+    );
+    let mut r = report(&dir.path("r.json"));
+    r["files"] = dir.files().into();
+    assert_eq!(r["complete"], false, "{name} {sig}: {r}");
+    assert_eq!(r["stopped"], "interrupted", "{name} {sig}");
+    assert_eq!(r["signal"], format!("SIG{sig}"), "{name} {sig}");
+    // The partial sample: a header and the report's count of points.
+    let sample = std::fs::read_to_string(dir.path("s.csv")).unwrap();
+    assert!(sample.starts_with("x1,"), "{name} {sig}");
+    assert_eq!(
+        sample.lines().count() - 1,
+        r["simplex_count"].as_u64().unwrap() as usize,
+        "{name} {sig}"
+    );
+    assert!(
+        dir.partials().is_empty(),
+        "{name} {sig}: {:?}",
+        dir.partials()
+    );
+    assert!(
+        lines.iter().any(|l| l.contains("complete: false")),
+        "{name} {sig}: {lines:?}"
+    );
+    r
+}
+
+/// A 3-D box whose scan spends seconds evaluating f on its grid.
+const GRID: &[&str] = &[
+    "trace",
+    "--preset",
+    "sphere",
+    "--exhaustive",
+    "--box",
+    "-1.5,1.5",
+    "--edge",
+    "0.015",
+];
+/// A search with many box points, from a spec with no seed (written by the test).
+const SEARCH: &[&str] = &[
+    "trace",
+    "noseed.toml",
+    "--search",
+    "2000000",
+    "--no-complex",
+];
+/// A trace of many levels (about 760).
+const LEVELS: &[&str] = &[
+    "trace", "--preset", "sphere", "--param", "r=2", "--edge", "0.02",
+];
+/// A surface whose complex takes a second or two to build and whose ASCII VTU as long to write.
+const MESHED: &[&str] = &[
+    "trace", "--preset", "sphere", "--param", "r=2", "--edge", "0.02", "--ascii",
+];
+
+#[test]
+fn the_grid_phase_of_a_scan_stops_cleanly() {
+    for sig in ["INT", "TERM", "HUP"] {
+        let r = stop_at("grid", GRID, "scan: evaluating", sig);
+        // Stopped before the grid was whole: nothing decided yet.
+        assert_eq!(r["vertices_evaluated"], 0, "{sig}: {r}");
+        assert_eq!(r["simplex_count"], 0, "{sig}");
+    }
+}
+
+#[test]
+fn the_seed_search_stops_cleanly() {
+    for sig in ["INT", "TERM", "HUP"] {
+        let r = stop_at("search", SEARCH, "box points projected", sig);
+        // Stopped among the projections: fewer than the 2,000,000 (nearly all land in the
+        // box), and none traced from.
+        assert!(r["seed_points"].as_u64().unwrap() < 1_000_000, "{sig}: {r}");
+        assert_eq!(r["levels"], 0, "{sig}: {r}");
+        assert_eq!(r["simplex_count"], 0, "{sig}");
+    }
+}
+
+#[test]
+fn trace_levels_stop_cleanly_with_the_partial_sample() {
+    for sig in ["INT", "TERM", "HUP"] {
+        let r = stop_at("levels", LEVELS, "isomesh: level 100,", sig);
+        let levels = r["levels"].as_u64().unwrap();
+        assert!((100..700).contains(&levels), "{sig}: {levels} levels");
+        assert!(r["simplex_count"].as_u64().unwrap() > 0, "{sig}");
+    }
+}
+
+#[test]
+fn the_complex_and_the_writing_stop_cleanly() {
+    for sig in ["INT", "TERM", "HUP"] {
+        let mut args = MESHED.to_vec();
+        args.extend(["--out", "m.vtu"]);
+        let r = stop_at("complex", &args, "complex: building", sig);
+        // The trace was whole; no mesh was written.
+        assert!(r["simplex_count"].as_u64().unwrap() > 100_000);
+        assert!(
+            !r["files"].as_array().unwrap().contains(&"m.vtu".into()),
+            "{r}"
+        );
+    }
+    for sig in ["INT", "TERM", "HUP"] {
+        let mut args = MESHED.to_vec();
+        args.extend(["--out", "m.vtu", "--out", "m.ply"]);
+        let r = stop_at("writing", &args, "writing m.vtu", sig);
+        // The file being written is finished, the next one skipped.
+        let files = r["files"].as_array().unwrap();
+        assert!(files.contains(&"m.vtu".into()), "{r}");
+        assert!(!files.contains(&"m.ply".into()), "{r}");
+    }
+}
+
+#[test]
+fn a_second_signal_aborts_promptly() {
+    for second in ["INT", "TERM"] {
+        let dir = Scratch::new(&format!("second-signal-{second}"));
+        let mut args = MESHED.to_vec();
+        args.extend([
+            "-v", "--out", "s.csv", "--out", "m.vtu", "--report", "r.json",
+        ]);
+        let run = Run::start(&dir, &args);
+        run.wait_line("writing m.vtu");
+        run.signal("INT");
+        run.wait_line("send it again");
+        run.signal(second);
+        let (status, took, lines) = run.wait();
+        assert_eq!(status.code(), Some(128 + number(second)), "{lines:?}");
+        assert!(took < Duration::from_secs(5), "{took:?}");
+        assert!(lines.iter().any(|l| l.contains("aborted")), "{lines:?}");
+        // Aborted in the middle of the write: no mesh, no report, no temporary file.
+        assert_eq!(dir.files(), ["s.csv".to_string()], "{lines:?}");
+    }
+}
