@@ -122,6 +122,7 @@ pub fn trace_case(p: &Problem, oracle: &dyn Oracle) -> Result<Sample> {
     let tri = p.triangulation.build(p.dim())?;
     let opts = TraceOptions {
         seeds: p.seeds.clone(),
+        warm: true,
         ..TraceOptions::default()
     };
     trace(&p.system, &tri, oracle, &opts)

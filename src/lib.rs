@@ -1,14 +1,36 @@
 //! isomesh: piecewise-linear meshes of implicit manifolds f^-1(0), f: R^d -> R^k, of any
 //! dimension and codimension, traced on a Coxeter (or Freudenthal-Kuhn) triangulation that is
-//! never stored.
+//! never stored (Boissonnat, Kachanovich and Wintraecken, "Tracing isomanifolds in R^d in time
+//! polynomial in d using Coxeter-Freudenthal-Kuhn triangulations", 2021).
 //!
+//! Start with [`Mesher`]: it owns f (equations as text, a preset, or any
+//! [`ImplicitFunction`](expr::ImplicitFunction)), the triangulation, the domain and the
+//! backend; [`Mesher::trace`] and [`Mesher::scan`] return a [`Manifold`] that builds its cell
+//! complex, reports and writes files:
+//!
+//! ```
+//! use isomesh::Mesher;
+//!
+//! let sphere = Mesher::preset("sphere", &[])?.edge(0.2).trace()?;
+//! let t = sphere.topology()?;
+//! assert_eq!((t.euler_characteristic, t.closed), (2, true));
+//! let dir = std::env::temp_dir().join(format!("isomesh-doc-{}", std::process::id()));
+//! sphere.write(dir.join("sphere.ply"))?;
+//! # std::fs::remove_dir_all(&dir).ok();
+//! # Ok::<(), isomesh::Error>(())
+//! ```
+//!
+//! The layers below stay public for callers who need them:
 //! - [`triangulation`]: simplices as permutahedral representations, faces, cofaces, point
 //!   location, compact keys.
-//! - [`expr`]: the equation language: parser, derivatives, batch evaluation, WGSL emission,
-//!   spec files and presets.
+//! - [`expr`]: the equation language: parser, derivatives, batch evaluation, spec files and
+//!   presets.
 //! - [`trace`]: manifold tracing and the exhaustive scan, behind the [`trace::Oracle`] trait.
-//! - [`gpu`]: the GPU oracle (wgpu, WGSL). [`complex`]: the cell complex and its topology.
-//!   [`export`]: files and pictures. [`bench`](mod@bench): the measurements of `isomesh bench`.
+//! - `gpu` (feature `gpu`): the GPU oracle (wgpu, WGSL). [`complex`]: the cell complex and its
+//!   topology. [`export`]: files and pictures. [`report`]: the report's keys.
+//!
+//! Features: `gpu` (wgpu, naga) and `cli` (the `isomesh` binary), both on by default; with
+//! `default-features = false` the library is CPU-only and pulls in neither wgpu nor clap.
 //!
 //! ```
 //! use isomesh::expr::{preset, ImplicitFunction};
@@ -28,16 +50,23 @@
 //! assert_eq!(s.facets().len(), 4);
 //! ```
 
+#[cfg(feature = "gpu")]
+#[doc(hidden)]
 pub mod bench;
 pub mod complex;
 pub mod cpu;
 pub mod error;
 pub mod export;
 pub mod expr;
+#[cfg(feature = "gpu")]
 pub mod gpu;
 pub mod linalg;
 pub mod memory;
+pub mod mesher;
+pub mod report;
 pub mod trace;
 pub mod triangulation;
 
 pub use error::{Error, Result};
+pub use mesher::{Backend, Manifold, Mesher, WriteOptions};
+pub use report::Report;

@@ -6,6 +6,7 @@ use isomesh::expr::{
     newton_project, parse_expr, parse_system, preset, preset_names, ClosureFunction,
     EquationSystem, ErrorKind, Expr, ImplicitFunction, Op1, Op2, Scope, Spec,
 };
+#[cfg(feature = "gpu")]
 use isomesh::gpu::wgsl::{eval_shader, Precision};
 use isomesh::Error;
 use proptest::prelude::*;
@@ -136,6 +137,7 @@ fn jacobians_agree_with_central_differences() {
     }
 }
 
+#[cfg(feature = "gpu")]
 #[test]
 fn every_preset_emits_valid_wgsl() {
     for name in preset_names() {
@@ -200,6 +202,7 @@ fn random_expr(rng: &mut ChaCha8Rng, d: usize, depth: usize) -> Expr {
     }
 }
 
+#[cfg(feature = "gpu")]
 #[test]
 fn random_expressions_emit_valid_wgsl_and_round_trip() {
     let mut rng = ChaCha8Rng::seed_from_u64(13);

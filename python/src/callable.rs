@@ -101,8 +101,13 @@ impl PyFunction {
         let shape = arr.shape().to_vec();
         let fits = shape == [n, self.k] || (self.k == 1 && shape == [n]);
         if !fits {
+            let shape: Vec<String> = shape.iter().map(usize::to_string).collect();
+            let shape = match shape.len() {
+                1 => format!("({},)", shape[0]),
+                _ => format!("({})", shape.join(", ")),
+            };
             return Err(PyValueError::new_err(format!(
-                "function returned an array of shape {shape:?} for {n} points of R^{}: expected \
+                "function returned an array of shape {shape} for {n} points of R^{}: expected \
                  ({n}, {}){}",
                 self.d,
                 self.k,
@@ -136,6 +141,9 @@ impl ImplicitFunction for PyFunction {
     }
     fn codim(&self) -> usize {
         self.k
+    }
+    fn serial(&self) -> bool {
+        true
     }
     fn eval_batch(&self, points: &[f64], out: &mut [f64]) {
         if points.is_empty() {

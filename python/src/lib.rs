@@ -2,7 +2,6 @@
 //! NumPy arrays. The Python package `isomesh` re-exports it.
 
 mod callable;
-mod engine;
 mod problem;
 mod result;
 

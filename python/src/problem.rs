@@ -10,13 +10,12 @@ use std::time::Duration;
 
 use isomesh::expr::{preset_spec, Spec, TriangulationSpec};
 use isomesh::gpu::Precision;
-use isomesh::Error;
+use isomesh::{Backend, Error, Manifold, Mesher};
 use pyo3::exceptions::{PyRuntimeWarning, PyTypeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyString};
 
 use crate::callable::PyFunction;
-use crate::engine::{self, Backend, RunOptions, Setup, Traced};
 use crate::result::Sample;
 use crate::to_py;
 
@@ -32,7 +31,10 @@ const POLL: Duration = Duration::from_millis(50);
 /// (n, k) array (CPU backend only).
 #[pyclass(module = "isomesh", frozen)]
 pub struct Problem {
-    setup: Setup,
+    mesher: Mesher,
+    name: String,
+    seeds: Vec<Vec<f64>>,
+    bbox: Option<Vec<[f64; 2]>>,
     equations: Option<Vec<String>>,
     callable: Option<Arc<PyFunction>>,
     stop: Arc<AtomicBool>,
@@ -48,6 +50,26 @@ struct TriKeywords {
 }
 
 impl TriKeywords {
+    fn apply_to(&self, mut m: Mesher) -> PyResult<Mesher> {
+        if let Some(e) = self.edge {
+            m = m.edge(e);
+        }
+        if let Some(k) = &self.kind {
+            m = m.triangulation(k.parse().map_err(to_py)?);
+        }
+        if let Some(s) = self.offset_seed {
+            m = m.offset_seed(s);
+        }
+        match (self.rotate, self.rotation_seed) {
+            (Some(false), Some(_)) => Err(PyValueError::new_err(
+                "rotate=False and a rotation_seed: give one or the other",
+            )),
+            (Some(false), None) => Ok(m.rotation_seed(None)),
+            (_, Some(s)) => Ok(m.rotation_seed(Some(s))),
+            (_, None) => Ok(m),
+        }
+    }
+
     fn apply(&self, t: &mut TriangulationSpec) -> PyResult<()> {
         if let Some(e) = self.edge {
             t.edge = Some(e);
@@ -106,42 +128,67 @@ fn check_box(bbox: &[[f64; 2]], d: usize) -> PyResult<()> {
 impl Problem {
     fn from_problem(p: isomesh::expr::Problem, equations: Vec<String>) -> Self {
         Problem {
-            setup: Setup {
-                name: p.name,
-                f: Arc::new(p.system.clone()),
-                system: Some(p.system),
-                seeds: p.seeds,
-                bbox: p.bbox,
-                triangulation: p.triangulation,
-            },
+            name: p.name.clone(),
+            seeds: p.seeds.clone(),
+            bbox: p.bbox.clone(),
+            mesher: Mesher::from_problem(p),
             equations: Some(equations),
             callable: None,
             stop: Arc::new(AtomicBool::new(false)),
         }
     }
 
-    /// A copy with other seeds or box, sharing f.
-    fn with_place(
+    /// The mesher of one run: this problem's, with the run's seeds, box and settings.
+    #[allow(clippy::too_many_arguments)]
+    fn mesher(
         &self,
         seeds: Option<Vec<Vec<f64>>>,
         bbox: Option<Vec<[f64; 2]>>,
-    ) -> PyResult<Setup> {
-        let d = self.setup.f.ambient_dim();
-        let mut s = self.setup.clone();
+        backend: &str,
+        threads: Option<usize>,
+        precision: Option<&str>,
+        max_memory: Option<u64>,
+    ) -> PyResult<Mesher> {
+        let d = self.mesher.ambient_dim();
+        let mut m = self.mesher.clone();
         if let Some(seeds) = seeds {
             check_seeds(&seeds, d)?;
-            s.seeds = seeds;
+            m = m.seeds(seeds);
         }
         if let Some(b) = bbox {
             check_box(&b, d)?;
-            s.bbox = Some(b);
+            m = m.bbox(b);
         }
-        Ok(s)
+        let precision = match precision.map(str::to_ascii_lowercase).as_deref() {
+            None | Some("auto") => None,
+            Some("f32") => Some(Precision::F32),
+            Some("f64") => Some(Precision::F64),
+            Some(p) => {
+                return Err(PyValueError::new_err(format!(
+                    "precision '{p}': use \"f32\", \"f64\" or \"auto\""
+                )))
+            }
+        };
+        if let Some(t) = threads {
+            m = m.threads(t);
+        }
+        if let Some(bytes) = max_memory {
+            if bytes == 0 {
+                return Err(PyValueError::new_err("max_memory must be positive"));
+            }
+            m = m.max_memory(bytes);
+        }
+        // Like the CLI, the pool's threads poll for work while a trace runs, except for a
+        // Python function, whose calls wait for the GIL.
+        Ok(m.warm(self.callable.is_none())
+            .backend(backend.parse::<Backend>().map_err(to_py)?)
+            .precision(precision)
+            .cancel(self.stop.clone()))
     }
 
-    /// Runs `opts` on `setup` in a worker thread; this thread waits with the GIL released,
-    /// looking for Ctrl-C, and re-raises what the callable raised.
-    fn run(&self, py: Python<'_>, setup: &Setup, opts: &RunOptions) -> PyResult<Sample> {
+    /// Runs `mesher` in a worker thread; this thread waits with the GIL released, looking for
+    /// Ctrl-C, and re-raises what the callable raised.
+    fn run(&self, py: Python<'_>, mesher: Mesher, exhaustive: bool) -> PyResult<Sample> {
         self.stop.store(false, Ordering::Relaxed);
         if let Some(c) = &self.callable {
             c.reset();
@@ -150,9 +197,14 @@ impl Problem {
         let rx = Mutex::new(rx);
         let mut interrupt: Option<PyErr> = None;
         let outcome = std::thread::scope(|s| {
-            let stop = self.stop.clone();
             s.spawn(move || {
-                let r = catch_unwind(AssertUnwindSafe(|| engine::run(setup, opts, stop)));
+                let r = catch_unwind(AssertUnwindSafe(|| {
+                    if exhaustive {
+                        mesher.scan()
+                    } else {
+                        mesher.trace()
+                    }
+                }));
                 let _ = tx.send(r.unwrap_or_else(|p| Err(Error::Trace(panic_message(&p)))));
             });
             loop {
@@ -184,17 +236,13 @@ impl Problem {
         if let Some(e) = self.callable.as_ref().and_then(|c| c.take_error()) {
             return Err(e);
         }
-        let mut traced: Traced = outcome.map_err(to_py)?;
-        if let (Some(c), Some(r)) = (&self.callable, traced.report.as_object_mut()) {
-            let st = c.stats();
-            r.insert("function_calls".into(), st.calls.into());
-            r.insert("function_points".into(), st.points.into());
-            r.insert("function_s".into(), st.seconds.into());
-        }
-        if let Some(stop) = &traced.sample.stats.stopped {
+        let manifold: Manifold = outcome.map_err(to_py)?;
+        let calls = self.callable.as_ref().map(|c| c.stats());
+        if !manifold.complete() {
             let msg = format!(
-                "{stop}; the {} simplices found so far are returned with complete = False",
-                traced.sample.len()
+                "{}; the {} simplices found so far are returned with complete = False",
+                manifold.report().stopped.unwrap_or_default(),
+                manifold.len()
             );
             PyErr::warn(
                 py,
@@ -203,38 +251,12 @@ impl Problem {
                 1,
             )?;
         }
-        Ok(Sample::new(traced, self.callable.clone()))
-    }
-
-    fn options(
-        exhaustive: bool,
-        backend: &str,
-        threads: Option<usize>,
-        precision: Option<&str>,
-        max_memory: Option<u64>,
-    ) -> PyResult<RunOptions> {
-        let precision = match precision.map(str::to_ascii_lowercase).as_deref() {
-            None | Some("auto") => None,
-            Some("f32") => Some(Precision::F32),
-            Some("f64") => Some(Precision::F64),
-            Some(p) => {
-                return Err(PyValueError::new_err(format!(
-                    "precision '{p}': use \"f32\", \"f64\" or \"auto\""
-                )))
-            }
-        };
-        if max_memory == Some(0) {
-            return Err(PyValueError::new_err("max_memory must be positive"));
-        }
-        Ok(RunOptions {
-            exhaustive,
-            backend: backend.parse::<Backend>().map_err(to_py)?,
-            precision,
-            threads,
-            search: None,
-            search_seed: 1,
-            max_memory,
-        })
+        Ok(Sample::new(
+            manifold,
+            self.name.clone(),
+            self.callable.clone(),
+            calls,
+        ))
     }
 }
 
@@ -360,20 +382,22 @@ impl Problem {
                 if let Some(b) = &r#box {
                     check_box(b, d)?;
                 }
-                let mut t = TriangulationSpec::default();
-                tri.apply(&mut t)?;
-                t.build(d).map_err(to_py)?;
                 let stop = Arc::new(AtomicBool::new(false));
                 let callable = Arc::new(PyFunction::new(f.unbind(), d, k, stop.clone()));
+                let name = name.unwrap_or_else(|| "function".into());
+                let mut m = tri
+                    .apply_to(Mesher::from_function(callable.clone()))?
+                    .name(&name)
+                    .seeds(seeds.clone());
+                if let Some(b) = &r#box {
+                    m = m.bbox(b.clone());
+                }
+                m.build_triangulation().map_err(to_py)?;
                 Ok(Problem {
-                    setup: Setup {
-                        name: name.unwrap_or_else(|| "function".into()),
-                        f: callable.clone(),
-                        system: None,
-                        seeds,
-                        bbox: r#box,
-                        triangulation: t,
-                    },
+                    mesher: m,
+                    name,
+                    seeds,
+                    bbox: r#box,
                     equations: None,
                     callable: Some(callable),
                     stop,
@@ -475,11 +499,11 @@ impl Problem {
         precision: Option<&str>,
         max_memory: Option<u64>,
     ) -> PyResult<Sample> {
-        let mut opts = Self::options(false, backend, threads, precision, max_memory)?;
-        opts.search = search;
-        opts.search_seed = search_seed;
-        let setup = self.with_place(seeds, r#box)?;
-        self.run(py, &setup, &opts)
+        let mut m = self.mesher(seeds, r#box, backend, threads, precision, max_memory)?;
+        if let Some(n) = search {
+            m = m.search(n);
+        }
+        self.run(py, m.search_seed(search_seed), false)
     }
 
     /// Scans every k-simplex of the triangulation in the box (the problem's, or `box`).
@@ -494,27 +518,26 @@ impl Problem {
         precision: Option<&str>,
         max_memory: Option<u64>,
     ) -> PyResult<Sample> {
-        let opts = Self::options(true, backend, threads, precision, max_memory)?;
-        let setup = self.with_place(None, r#box)?;
-        self.run(py, &setup, &opts)
+        let m = self.mesher(None, r#box, backend, threads, precision, max_memory)?;
+        self.run(py, m, true)
     }
 
     /// The problem's name.
     #[getter]
     fn name(&self) -> &str {
-        &self.setup.name
+        &self.name
     }
 
     /// d, the dimension of the ambient space.
     #[getter]
     fn ambient_dim(&self) -> usize {
-        self.setup.f.ambient_dim()
+        self.mesher.ambient_dim()
     }
 
     /// k, the number of equations.
     #[getter]
     fn codim(&self) -> usize {
-        self.setup.f.codim()
+        self.mesher.codim()
     }
 
     /// The equations as given (None for a Python function).
@@ -526,31 +549,26 @@ impl Problem {
     /// The seeds (Newton-projected for equations).
     #[getter]
     fn seeds(&self) -> Vec<Vec<f64>> {
-        self.setup.seeds.clone()
+        self.seeds.clone()
     }
 
     /// The box, [[lo, hi], ...] per axis, or None.
     #[getter(r#box)]
     fn bbox(&self) -> Option<Vec<[f64; 2]>> {
-        self.setup.bbox.clone()
+        self.bbox.clone()
     }
 
     /// The longest edge of a d-simplex of the triangulation.
     #[getter]
     fn edge(&self) -> PyResult<f64> {
-        Ok(self
-            .setup
-            .triangulation
-            .build(self.setup.f.ambient_dim())
-            .map_err(to_py)?
-            .edge())
+        Ok(self.mesher.build_triangulation().map_err(to_py)?.edge())
     }
 
     fn __repr__(&self) -> String {
-        let f = self.setup.f.as_ref();
+        let f = self.mesher.function();
         format!(
             "Problem('{}', f: R^{} -> R^{}, {})",
-            self.setup.name,
+            self.name,
             f.ambient_dim(),
             f.codim(),
             match &self.equations {

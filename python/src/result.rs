@@ -4,30 +4,38 @@
 use std::path::PathBuf;
 use std::sync::Arc;
 
-use isomesh::export::picture::Picture;
-use isomesh::export::{write_mesh, write_sample, Mesh, MeshFormat, Projection, SampleFormat};
+use isomesh::export::{Mesh, Projection};
+use isomesh::{Manifold, WriteOptions};
 use numpy::ndarray::{Array1, Array2};
 use numpy::{IntoPyArray, PyArray1, PyArray2};
 use pyo3::exceptions::{PyIndexError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
-use crate::callable::PyFunction;
-use crate::engine::Traced;
+use crate::callable::{CallStats, PyFunction};
 use crate::{json_to_py, to_py};
 
 /// The crossed k-simplices of a trace or scan: keys, points on M, counters.
 #[pyclass(module = "isomesh", frozen)]
 pub struct Sample {
-    inner: Arc<Traced>,
+    inner: Arc<Manifold>,
+    name: String,
     callable: Option<Arc<PyFunction>>,
+    calls: Option<CallStats>,
 }
 
 impl Sample {
-    pub(crate) fn new(inner: Traced, callable: Option<Arc<PyFunction>>) -> Self {
+    pub(crate) fn new(
+        inner: Manifold,
+        name: String,
+        callable: Option<Arc<PyFunction>>,
+        calls: Option<CallStats>,
+    ) -> Self {
         Sample {
             inner: Arc::new(inner),
+            name,
             callable,
+            calls,
         }
     }
 }
@@ -59,65 +67,40 @@ fn array2<'py, T: numpy::Element>(
         .into_pyarray(py))
 }
 
-/// What a path receives: the sample's points or the mesh.
-enum Output {
-    Sample(SampleFormat),
-    Mesh(MeshFormat),
-}
-
-fn output_kind(path: &std::path::Path, format: Option<&str>) -> PyResult<Output> {
-    let by_name = |name: &str| match name.to_ascii_lowercase().as_str() {
-        "csv" => Some(Output::Sample(SampleFormat::Csv)),
-        "xyz" | "txt" => Some(Output::Sample(SampleFormat::Xyz)),
-        n => MeshFormat::from_name(n).map(Output::Mesh),
-    };
-    let found = match format {
-        Some(f) => by_name(f),
-        None => path.extension().and_then(|e| by_name(&e.to_string_lossy())),
-    };
-    found.ok_or_else(|| {
-        PyValueError::new_err(format!(
-            "{}: unknown output format; use .csv, .xyz, .txt, .ply, .obj, .off, .stl, .mesh, \
-             .vtu or .npz, or format=",
-            path.display()
-        ))
-    })
-}
-
 #[pymethods]
 impl Sample {
     /// Number of crossed k-simplices.
     #[getter]
     fn simplex_count(&self) -> usize {
-        self.inner.sample.len()
+        self.inner.sample().len()
     }
 
     fn __len__(&self) -> usize {
-        self.inner.sample.len()
+        self.inner.sample().len()
     }
 
     /// d.
     #[getter]
     fn ambient_dim(&self) -> usize {
-        self.inner.sample.ambient_dim()
+        self.inner.sample().ambient_dim()
     }
 
     /// k.
     #[getter]
     fn codim(&self) -> usize {
-        self.inner.sample.codim()
+        self.inner.sample().codim()
     }
 
     /// False when the run stopped early (memory limit): what was found so far.
     #[getter]
     fn complete(&self) -> bool {
-        self.inner.sample.stats.stopped.is_none()
+        self.inner.sample().stats.stopped.is_none()
     }
 
     /// The point of M in each simplex, (N, d) float64.
     #[getter]
     fn points<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<f64>>> {
-        let s = &self.inner.sample;
+        let s = self.inner.sample();
         let pts = py.detach(|| s.points());
         array2(py, s.len(), s.ambient_dim(), pts)
     }
@@ -125,7 +108,7 @@ impl Sample {
     /// The simplices' keys, (N, W) uint64, in the sample's order.
     #[getter]
     fn keys<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<u64>>> {
-        let s = &self.inner.sample;
+        let s = self.inner.sample();
         let w = s.codec().words();
         let mut v = Vec::with_capacity(s.len() * w);
         for i in 0..s.len() {
@@ -137,7 +120,14 @@ impl Sample {
     /// The CLI's `--report` keys, with the topology's once `complex()` was built.
     #[getter]
     fn report<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
-        json_to_py(py, &self.inner.report())
+        let mut v = serde_json::to_value(self.inner.report())
+            .map_err(|e| PyValueError::new_err(e.to_string()))?;
+        if let (Some(st), Some(r)) = (self.calls, v.as_object_mut()) {
+            r.insert("function_calls".into(), st.calls.into());
+            r.insert("function_points".into(), st.points.into());
+            r.insert("function_s".into(), st.seconds.into());
+        }
+        json_to_py(py, &v)
     }
 
     /// The cell complex (built once, within the run's memory limit).
@@ -146,27 +136,28 @@ impl Sample {
         released(py, &self.callable, move || inner.complex().map(|_| ()))?;
         Ok(Complex {
             inner: self.inner.clone(),
+            name: self.name.clone(),
             callable: self.callable.clone(),
         })
     }
 
-    /// Writes the points as .csv, .xyz or .txt (`format` overrides the extension).
+    /// Writes the points (.csv, .xyz, .txt) or, building the complex, the mesh (.ply, .obj,
+    /// .off, .stl, .mesh, .vtu, .npz); `format` overrides the extension.
     #[pyo3(signature = (path, format=None))]
-    fn write(&self, path: PathBuf, format: Option<&str>) -> PyResult<()> {
-        match output_kind(&path, format)? {
-            Output::Sample(f) => write_sample(&path, &self.inner.sample, f).map_err(to_py),
-            Output::Mesh(_) => Err(PyValueError::new_err(format!(
-                "{}: a mesh format; build the complex first: sample.complex().write(path)",
-                path.display()
-            ))),
-        }
+    fn write(&self, py: Python<'_>, path: PathBuf, format: Option<&str>) -> PyResult<()> {
+        let opts = WriteOptions {
+            format: format.map(str::to_string),
+            projection: None,
+        };
+        let inner = self.inner.clone();
+        released(py, &self.callable, move || inner.write_with(&path, &opts))
     }
 
     fn __repr__(&self) -> String {
-        let s = &self.inner.sample;
+        let s = self.inner.sample();
         format!(
             "Sample('{}', {} simplices, R^{} -> R^{}{})",
-            self.inner.setup.name,
+            self.name,
             s.len(),
             s.ambient_dim(),
             s.codim(),
@@ -179,17 +170,16 @@ impl Sample {
 /// Hasse diagram), topology, meshes.
 #[pyclass(module = "isomesh", frozen)]
 pub struct Complex {
-    inner: Arc<Traced>,
+    inner: Arc<Manifold>,
+    name: String,
     callable: Option<Arc<PyFunction>>,
 }
 
 impl Complex {
     fn get(&self) -> &isomesh::complex::Complex {
-        &self
-            .inner
+        self.inner
             .complex()
             .expect("a Complex is made after its build succeeded")
-            .0
     }
 
     fn mesh_then<T: Send>(
@@ -201,10 +191,9 @@ impl Complex {
         let c = self.get();
         let d = c.ambient_dim();
         let projection = Projection::parse(projection, d).map_err(to_py)?;
-        let name = self.inner.setup.name.clone();
-        let f = self.inner.setup.f.clone();
+        let (name, f) = (self.name.clone(), self.inner.function());
         released(py, &self.callable, move || {
-            let mesh = Mesh::new(c, Some(f.as_ref()), &projection, &name);
+            let mesh = Mesh::new(c, Some(f), &projection, &name);
             work(&mesh)
         })
     }
@@ -288,7 +277,9 @@ impl Complex {
     /// components, ... (the topology keys of the CLI's report).
     #[getter]
     fn topology<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
-        let (c, t, topo_s) = self.inner.complex().map_err(|e| to_py(e.clone()))?;
+        let c = self.get();
+        let t = self.inner.topology().map_err(to_py)?;
+        let topo_s = self.inner.report().complex.map(|r| r.topology_s);
         let v = serde_json::json!({
             "dim": t.dim,
             "cells": t.cells,
@@ -395,35 +386,20 @@ impl Complex {
         format: Option<&str>,
         projection: &str,
     ) -> PyResult<()> {
-        match output_kind(&path, format)? {
-            Output::Sample(f) => write_sample(&path, &self.inner.sample, f).map_err(to_py),
-            Output::Mesh(f) => {
-                f.check_holds(self.get().dim(), &path).map_err(to_py)?;
-                self.mesh_then(py, projection, move |mesh| write_mesh(&path, mesh, f))
-            }
-        }
+        let opts = WriteOptions {
+            format: format.map(str::to_string),
+            projection: Some(projection.to_string()),
+        };
+        let inner = self.inner.clone();
+        released(py, &self.callable, move || inner.write_with(&path, &opts))
     }
 
     /// Draws the mesh into a PNG picture of `width` x `height` pixels.
-    #[pyo3(signature = (path, width=1200, height=900, projection="auto"))]
-    fn picture(
-        &self,
-        py: Python<'_>,
-        path: PathBuf,
-        width: usize,
-        height: usize,
-        projection: &str,
-    ) -> PyResult<()> {
-        let (_, t, _) = self.inner.complex().map_err(|e| to_py(e.clone()))?;
-        let caption = format!(
-            "{}: {}-manifold in R^{}, chi = {}",
-            self.inner.setup.name,
-            t.dim,
-            self.get().ambient_dim(),
-            t.euler_characteristic
-        );
-        self.mesh_then(py, projection, move |mesh| {
-            Picture::render(mesh, width, height, &caption)?.write_png(&path)
+    #[pyo3(signature = (path, width=1200, height=900))]
+    fn picture(&self, py: Python<'_>, path: PathBuf, width: usize, height: usize) -> PyResult<()> {
+        let inner = self.inner.clone();
+        released(py, &self.callable, move || {
+            inner.picture(&path, width, height)
         })
     }
 

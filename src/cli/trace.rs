@@ -17,10 +17,10 @@ use isomesh::export::{
 use isomesh::expr::{ImplicitFunction, Problem};
 use isomesh::gpu::{Gpu, GpuOracle, Precision};
 use isomesh::memory;
+use isomesh::report::{BackendInfo, ComplexReport, Report, RunInfo};
 use isomesh::trace::{exhaustive, trace, CpuOracle, Oracle, Progress, TraceOptions};
 use isomesh::triangulation::TriangulationKind;
 use isomesh::{Error, Result};
-use serde_json::json;
 
 use super::load;
 
@@ -335,7 +335,6 @@ fn run_in_pool(p: &Problem, args: &TraceArgs, threads: usize) -> Result<()> {
         Some(o) => o,
         None => &cpu_oracle,
     };
-    let backend = oracle.name();
     let cancel = interrupt_flag();
     cancel.store(false, Ordering::Relaxed);
     let bar = progress_bar(args.quiet);
@@ -359,6 +358,7 @@ fn run_in_pool(p: &Problem, args: &TraceArgs, threads: usize) -> Result<()> {
         max_memory: args.max_memory.unwrap_or_else(memory::default_limit),
         cancel: Some(cancel.clone()),
         progress: Some(&report_progress),
+        warm: true,
         ..TraceOptions::default()
     };
     memory::reset_peak();
@@ -453,72 +453,28 @@ fn run_in_pool(p: &Problem, args: &TraceArgs, threads: usize) -> Result<()> {
         0.0
     };
     if let Some(path) = &args.report {
-        let report = json!({
-            "name": p.name,
-            "mode": if args.exhaustive { "exhaustive" } else { "trace" },
-            "ambient_dim": d,
-            "codim": k,
-            "manifold_dim": d - k,
-            "triangulation": tri.kind().name(),
-            "edge": tri.edge(),
-            "offset": tri.offset(),
-            "box": p.bbox,
-            "simplex_count": n,
-            "components": complex.as_ref().map_or(st.components, |c| c.1.components),
-            "backend": backend,
-            "precision": gpu_oracle.as_ref().map_or("f64", |o| o.precision().ty()),
-            "recheck_share": gpu_oracle.as_ref().map(|o| {
-                let st = o.stats();
-                if st.solved > 0 { st.rechecked as f64 / st.solved as f64 } else { 0.0 }
-            }),
-            "gpu_s": gpu_oracle.as_ref().map(|o| o.stats().gpu_s),
-            "adapter": gpu_oracle.as_ref().map(|o| o.gpu().adapter.clone()),
-            "threads": threads,
-            "elapsed_s": st.elapsed_s,
-            "simplices_per_s": per_s,
-            "peak_memory_bytes": peak,
-            "bytes_per_simplex": if n > 0 { peak as f64 / n as f64 } else { 0.0 },
-            "levels": st.levels,
-            "widest_level": st.widest_level,
-            "oracle_calls": st.oracle_calls,
-            "exact_decisions": st.exact_decisions,
-            "pivot_fallbacks": st.pivot_fallbacks,
-            "degenerate": st.degenerate,
-            "non_finite": st.non_finite,
-            "vertices_evaluated": st.vertices,
-            "seed_points": st.seed_points,
-            "suspect_crossings": suspect,
-            "complete": st.stopped.is_none(),
-            "stopped": st.stopped.as_ref().map(|s| s.to_string()),
-            "error": failure.as_ref().map(|e| e.to_string()),
-        });
-        let mut report = report;
+        let backend = match &gpu_oracle {
+            Some(o) => BackendInfo::of_gpu(o),
+            None => BackendInfo::cpu(),
+        };
+        let run = RunInfo {
+            name: p.name.clone(),
+            exhaustive: args.exhaustive,
+            bbox: p.bbox.clone(),
+            backend,
+            threads,
+            peak_memory_bytes: peak as u64,
+            suspect_crossings: suspect,
+        };
+        let mut report = Report::new(&sample, run);
+        report.error = failure.as_ref().map(|e| e.to_string());
         if let Some((c, t, topo_s)) = &complex {
-            let extra = json!({
-                "cells": t.cells,
-                "euler_characteristic": t.euler_characteristic,
-                "manifold": t.manifold,
-                "closed": t.closed,
-                "boundary_cells": t.boundary_cells,
-                "boundary_euler_characteristic": t.boundary_euler_characteristic,
-                "orientable": t.orientable,
-                "betti_mod2": t.betti_mod2,
-                "closed_components": t.closed_components,
-                "offender_count": t.offender_count,
-                "offenders": t.offenders,
-                "defects": t.defects,
-                "complex_s": c.stats.elapsed_s,
-                "topology_s": topo_s,
-                "projection": args.project,
-            });
-            if let (Some(r), Some(e)) = (report.as_object_mut(), extra.as_object()) {
-                r.extend(e.clone());
-            }
+            report = report.with_complex(
+                ComplexReport::new(c, t, *topo_s, &args.project),
+                t.components,
+            );
         }
-        write_atomic(path, |w| {
-            serde_json::to_writer_pretty(&mut *w, &report).map_err(std::io::Error::other)?;
-            writeln!(w)
-        })?;
+        write_atomic(path, |w| writeln!(w, "{}", report.to_json()))?;
         written.push(path.clone());
     }
     if !args.quiet {

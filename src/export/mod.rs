@@ -67,6 +67,47 @@ impl SampleFormat {
     }
 }
 
+/// What an output file receives: the sample's points or the mesh.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum OutputFormat {
+    /// One point of M per crossed simplex.
+    Sample(SampleFormat),
+    /// The cell complex, as a mesh file.
+    Mesh(MeshFormat),
+}
+
+impl OutputFormat {
+    /// The format called `name`: csv, xyz, txt, or a [`MeshFormat`] name.
+    pub fn from_name(name: &str) -> Option<Self> {
+        match name.to_ascii_lowercase().as_str() {
+            "csv" => Some(OutputFormat::Sample(SampleFormat::Csv)),
+            "xyz" | "txt" => Some(OutputFormat::Sample(SampleFormat::Xyz)),
+            other => MeshFormat::from_name(other).map(OutputFormat::Mesh),
+        }
+    }
+
+    /// The format for `path`: `format` when given, else the file extension.
+    pub fn for_path(path: &Path, format: Option<&str>) -> Result<Self> {
+        match format {
+            Some(f) => Self::from_name(f).ok_or_else(|| {
+                Error::Spec(format!(
+                    "format {f}: use csv, xyz, ply, obj, off, stl, mesh, vtu or npz"
+                ))
+            }),
+            None => path
+                .extension()
+                .and_then(|e| Self::from_name(&e.to_string_lossy()))
+                .ok_or_else(|| {
+                    Error::Io(format!(
+                        "{}: unknown output format; use .csv, .xyz, .txt, .ply, .obj, .off, \
+                         .stl, .mesh, .vtu or .npz",
+                        path.display()
+                    ))
+                }),
+        }
+    }
+}
+
 /// Writes the points of S, one per line, in full f64 precision (shortest round-trip form).
 pub fn write_sample(path: &Path, sample: &Sample, format: SampleFormat) -> Result<()> {
     let d = sample.ambient_dim();

@@ -1,25 +1,7 @@
 //! Adapters and devices: which GPUs wgpu offers, and one opened for compute.
 
-use serde::Serialize;
-
 use crate::error::{Error, Result};
-
-/// What an adapter is, for reports and `isomesh info`.
-#[derive(Clone, Debug, Serialize)]
-pub struct AdapterSummary {
-    /// The adapter's name.
-    pub name: String,
-    /// The graphics API wgpu drives it through (Vulkan, Metal, Dx12, Gl).
-    pub backend: String,
-    /// DiscreteGpu, IntegratedGpu, VirtualGpu, Cpu (software) or Other.
-    pub device_type: String,
-    /// The driver and its version.
-    pub driver: String,
-    /// Whether shaders can use f64 (SHADER_F64).
-    pub shader_f64: bool,
-    /// Largest storage buffer binding, bytes.
-    pub max_storage_binding: u64,
-}
+pub use crate::report::AdapterSummary;
 
 impl AdapterSummary {
     fn of(a: &wgpu::Adapter) -> Self {
@@ -34,12 +16,6 @@ impl AdapterSummary {
             shader_f64: a.features().contains(wgpu::Features::SHADER_F64),
             max_storage_binding: a.limits().max_storage_buffer_binding_size,
         }
-    }
-
-    /// Whether it is a software rasterizer (lavapipe, llvmpipe, WARP): slower than the CPU
-    /// path, so `--backend auto` skips it.
-    pub fn is_software(&self) -> bool {
-        self.device_type == "Cpu"
     }
 }
 

@@ -70,6 +70,9 @@ pub struct TraceOptions<'a> {
     pub cancel: Option<Arc<AtomicBool>>,
     /// Called after every level.
     pub progress: Option<&'a (dyn Fn(&Progress) + Sync)>,
+    /// Keep the pool's other threads polling for work while the trace runs, so that small
+    /// levels use every core (they burn those cores meanwhile; the command line sets it).
+    pub warm: bool,
 }
 
 impl Default for TraceOptions<'_> {
@@ -82,6 +85,7 @@ impl Default for TraceOptions<'_> {
             max_memory: crate::memory::default_limit(),
             cancel: None,
             progress: None,
+            warm: false,
         }
     }
 }
@@ -551,7 +555,9 @@ pub fn trace(
     let words = ctx.codec.words();
     // On a worker of the pool, levels too small to split run on this thread with no
     // hand-over to another, and the other threads stay awake for the larger ones.
-    warm::warm(|| with_width!(words, trace_with(f, ctx, &seeds, search, opts.search_seed)))
+    warm::maybe(opts.warm, || {
+        with_width!(words, trace_with(f, ctx, &seeds, search, opts.search_seed))
+    })
 }
 
 fn trace_with<const W: usize>(
@@ -593,7 +599,7 @@ pub fn exhaustive(
     let ctx = context(f, tri, oracle, opts)?;
     scan_box(opts)?;
     let words = ctx.codec.words();
-    warm::warm(|| with_width!(words, exhaustive_with(ctx)))
+    warm::maybe(opts.warm, || with_width!(words, exhaustive_with(ctx)))
 }
 
 fn scan_box<'a>(opts: &'a TraceOptions) -> Result<&'a [[f64; 2]]> {

@@ -39,6 +39,15 @@ pub(crate) fn warm<R: Send>(f: impl FnOnce() -> R + Send) -> R {
     })
 }
 
+/// [`warm`] when `on`, else `f()` as it is.
+pub(crate) fn maybe<R: Send>(on: bool, f: impl FnOnce() -> R + Send) -> R {
+    if on {
+        warm(f)
+    } else {
+        f()
+    }
+}
+
 /// Runs the pool's pending jobs until `done`. Returns at once on the thread running the
 /// trace (which would otherwise wait on itself) and on a thread polling already.
 fn poll(done: &AtomicBool, owner: Option<usize>) {

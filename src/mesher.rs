@@ -1,0 +1,575 @@
+//! The entry point for embedders: a [`Mesher`] owns f, the triangulation, the domain and the
+//! backend, and its [`trace`](Mesher::trace) or [`scan`](Mesher::scan) returns a [`Manifold`]
+//! that carries all of them, so that its complex, topology, report and files need no argument
+//! given twice.
+//!
+//! ```
+//! use isomesh::Mesher;
+//!
+//! let torus = Mesher::preset("torus", &[])?.edge(0.1).trace()?;
+//! let topology = torus.topology()?;
+//! assert_eq!(topology.euler_characteristic, 0);
+//! assert_eq!(topology.betti_mod2, Some(vec![1, 2, 1]));
+//! # Ok::<(), isomesh::Error>(())
+//! ```
+//!
+//! The layers below ([`trace::trace`](crate::trace::trace), [`Complex`],
+//! [`export`](crate::export)) stay public for callers that need them.
+
+use std::path::Path;
+use std::sync::atomic::AtomicBool;
+use std::sync::{Arc, OnceLock};
+use std::time::Instant;
+
+use crate::complex::{Complex, Topology};
+use crate::error::{Error, Result};
+use crate::export::mesh::{write_mesh, Mesh};
+use crate::export::picture::Picture;
+use crate::export::{write_sample, OutputFormat, Projection};
+use crate::expr::{preset, ImplicitFunction, Problem, Spec, TriangulationSpec};
+use crate::memory;
+use crate::report::{BackendInfo, ComplexReport, Report, RunInfo};
+use crate::trace::{self, CpuOracle, Oracle, Progress, Sample, TraceOptions};
+use crate::triangulation::{Triangulation, TriangulationKind};
+
+/// Which oracle decides the intersection tests.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Backend {
+    /// f64 on the CPU: the reference.
+    #[default]
+    Cpu,
+    /// The GPU oracle on any adapter, software ones included (needs the `gpu` feature and f
+    /// in the equation language).
+    Gpu,
+    /// A hardware GPU when there is one and f is in the equation language, else the CPU.
+    Auto,
+}
+
+impl std::str::FromStr for Backend {
+    type Err = Error;
+    fn from_str(s: &str) -> Result<Self> {
+        match s {
+            "cpu" => Ok(Backend::Cpu),
+            "gpu" => Ok(Backend::Gpu),
+            "auto" => Ok(Backend::Auto),
+            other => Err(Error::Spec(format!(
+                "unknown backend '{other}': expected cpu, gpu or auto"
+            ))),
+        }
+    }
+}
+
+/// Called after every trace level.
+pub type ProgressFn = dyn Fn(&Progress) + Send + Sync;
+
+/// A problem ready to mesh: f (equations or any [`ImplicitFunction`]), the triangulation,
+/// the domain (box and f's boundary inequalities), seeds, the backend and the limits. Set it
+/// up with the builder methods, then [`trace`](Self::trace) or [`scan`](Self::scan).
+#[derive(Clone)]
+pub struct Mesher {
+    name: String,
+    function: Arc<dyn ImplicitFunction>,
+    triangulation: TriangulationSpec,
+    bbox: Option<Vec<[f64; 2]>>,
+    seeds: Vec<Vec<f64>>,
+    search: Option<usize>,
+    search_seed: u64,
+    backend: Backend,
+    #[cfg(feature = "gpu")]
+    precision: Option<crate::gpu::Precision>,
+    threads: Option<usize>,
+    max_memory: u64,
+    cancel: Option<Arc<AtomicBool>>,
+    progress: Option<Arc<ProgressFn>>,
+    warm: bool,
+}
+
+impl std::fmt::Debug for Mesher {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Mesher")
+            .field("name", &self.name)
+            .field("ambient_dim", &self.function.ambient_dim())
+            .field("codim", &self.function.codim())
+            .field("triangulation", &self.triangulation)
+            .field("bbox", &self.bbox)
+            .field("seeds", &self.seeds)
+            .field("backend", &self.backend)
+            .finish_non_exhaustive()
+    }
+}
+
+impl Mesher {
+    /// A resolved spec or preset (see [`Spec::resolve`] and [`preset`]).
+    pub fn from_problem(p: Problem) -> Self {
+        let mut m = Self::with_function(Arc::new(p.system), &p.name);
+        m.triangulation = p.triangulation;
+        m.bbox = p.bbox;
+        m.seeds = p.seeds;
+        m
+    }
+
+    /// The built-in manifold `name` with parameter overrides (`isomesh presets` lists them).
+    ///
+    /// ```
+    /// let m = isomesh::Mesher::preset("sphere", &[("r".into(), 2.0)])?;
+    /// assert_eq!(m.ambient_dim(), 3);
+    /// # Ok::<(), isomesh::Error>(())
+    /// ```
+    pub fn preset(name: &str, params: &[(String, f64)]) -> Result<Self> {
+        preset(name, params).map(Self::from_problem)
+    }
+
+    /// A spec as read from TOML (see [`Spec`]), named `name`.
+    pub fn from_spec(spec: &Spec, name: &str) -> Result<Self> {
+        spec.resolve(name).map(Self::from_problem)
+    }
+
+    /// A spec in TOML text, the format of `isomesh trace SPEC.toml`.
+    ///
+    /// ```
+    /// let m = isomesh::Mesher::from_toml(
+    ///     "equations = [\"x^2 + y^2 - 1\"]\nvariables = [\"x\", \"y\"]\nseeds = [[1, 0]]",
+    ///     "circle",
+    /// )?;
+    /// assert_eq!(m.trace()?.topology()?.betti_mod2, Some(vec![1, 1]));
+    /// # Ok::<(), isomesh::Error>(())
+    /// ```
+    pub fn from_toml(text: &str, name: &str) -> Result<Self> {
+        Self::from_spec(&Spec::from_toml(text)?, name)
+    }
+
+    /// A spec file; the problem is named after the file's stem.
+    pub fn from_file(path: &Path) -> Result<Self> {
+        let stem = path
+            .file_stem()
+            .map(|s| s.to_string_lossy().into_owned())
+            .unwrap_or_default();
+        Self::from_spec(&Spec::from_file(path)?, &stem)
+    }
+
+    /// Any f, for example a [`ClosureFunction`](crate::expr::ClosureFunction) (the CPU backend
+    /// only: the GPU needs the equation language). Give seeds or a box before tracing.
+    pub fn from_function(f: Arc<dyn ImplicitFunction>) -> Self {
+        Self::with_function(f, "function")
+    }
+
+    fn with_function(f: Arc<dyn ImplicitFunction>, name: &str) -> Self {
+        Mesher {
+            name: name.to_string(),
+            function: f,
+            triangulation: TriangulationSpec::default(),
+            bbox: None,
+            seeds: Vec::new(),
+            search: None,
+            search_seed: 1,
+            backend: Backend::Cpu,
+            #[cfg(feature = "gpu")]
+            precision: None,
+            threads: None,
+            max_memory: memory::default_limit(),
+            cancel: None,
+            progress: None,
+            warm: false,
+        }
+    }
+
+    /// Renames the problem (reports and file headers carry the name).
+    pub fn name(mut self, name: &str) -> Self {
+        self.name = name.to_string();
+        self
+    }
+
+    /// The longest edge of a d-simplex of the triangulation.
+    pub fn edge(mut self, edge: f64) -> Self {
+        self.triangulation.edge = Some(edge);
+        self
+    }
+
+    /// Coxeter (the default) or Freudenthal-Kuhn.
+    pub fn triangulation(mut self, kind: TriangulationKind) -> Self {
+        self.triangulation.kind = Some(kind.name().to_string());
+        self
+    }
+
+    /// The seed of the triangulation's random offset.
+    pub fn offset_seed(mut self, seed: u64) -> Self {
+        self.triangulation.offset_seed = Some(seed);
+        self.triangulation.offset = None;
+        self
+    }
+
+    /// The seed of the lattice's random rotation, or `None` for an unrotated lattice.
+    pub fn rotation_seed(mut self, seed: Option<u64>) -> Self {
+        self.triangulation.rotation_seed = seed;
+        self.triangulation.rotate = Some(seed.is_some());
+        self
+    }
+
+    /// The box [lo, hi] per axis: the domain, with f's boundary inequalities.
+    pub fn bbox(mut self, bbox: Vec<[f64; 2]>) -> Self {
+        self.bbox = Some(bbox);
+        self
+    }
+
+    /// Points near M to trace from (they replace any seeds of the spec).
+    pub fn seeds(mut self, seeds: Vec<Vec<f64>>) -> Self {
+        self.seeds = seeds;
+        self
+    }
+
+    /// Random box points projected onto M to find components (default: 512 when no seed is
+    /// given, else none).
+    pub fn search(mut self, samples: usize) -> Self {
+        self.search = Some(samples);
+        self
+    }
+
+    /// The seed of the box search's sampling.
+    pub fn search_seed(mut self, seed: u64) -> Self {
+        self.search_seed = seed;
+        self
+    }
+
+    /// Which oracle decides (default: the CPU).
+    pub fn backend(mut self, backend: Backend) -> Self {
+        self.backend = backend;
+        self
+    }
+
+    /// GPU shader precision (`None`: f64 where the adapter has it, else f32).
+    #[cfg(feature = "gpu")]
+    pub fn precision(mut self, precision: Option<crate::gpu::Precision>) -> Self {
+        self.precision = precision;
+        self
+    }
+
+    /// Worker threads, in a pool of the mesher's own (default: rayon's current pool).
+    pub fn threads(mut self, threads: usize) -> Self {
+        self.threads = Some(threads);
+        self
+    }
+
+    /// Stop (keeping what was found) before the trace, or refuse a complex, that would pass
+    /// this many heap bytes (default: 3/4 of RAM).
+    pub fn max_memory(mut self, bytes: u64) -> Self {
+        self.max_memory = bytes;
+        self
+    }
+
+    /// A flag that stops the run cleanly when set (what was found is kept, and the result
+    /// says it is not complete).
+    pub fn cancel(mut self, flag: Arc<AtomicBool>) -> Self {
+        self.cancel = Some(flag);
+        self
+    }
+
+    /// Called after every trace level.
+    pub fn progress(mut self, f: Arc<ProgressFn>) -> Self {
+        self.progress = Some(f);
+        self
+    }
+
+    /// Keep the pool's other threads polling for work while a trace runs, so that small levels
+    /// use every core (the command line does; it burns those cores while the trace runs).
+    pub fn warm(mut self, warm: bool) -> Self {
+        self.warm = warm;
+        self
+    }
+
+    /// d.
+    pub fn ambient_dim(&self) -> usize {
+        self.function.ambient_dim()
+    }
+
+    /// k, the number of equations.
+    pub fn codim(&self) -> usize {
+        self.function.codim()
+    }
+
+    /// f.
+    pub fn function(&self) -> &dyn ImplicitFunction {
+        &*self.function
+    }
+
+    /// The triangulation these settings give.
+    pub fn build_triangulation(&self) -> Result<Triangulation> {
+        self.triangulation.build(self.ambient_dim())
+    }
+
+    /// Traces M from the seeds (and a box search where asked or where there is no seed).
+    /// An early stop (cancel flag, memory limit) returns what was found, marked incomplete.
+    pub fn trace(&self) -> Result<Manifold> {
+        self.run(false)
+    }
+
+    /// Scans every k-simplex in the box (no seed needed; every component is found).
+    pub fn scan(&self) -> Result<Manifold> {
+        self.run(true)
+    }
+
+    fn run(&self, exhaustive: bool) -> Result<Manifold> {
+        if let Some(0) = self.threads {
+            return Err(Error::Spec("threads must be at least 1".into()));
+        }
+        match self.threads {
+            Some(n) => rayon::ThreadPoolBuilder::new()
+                .num_threads(n)
+                .build()
+                .map_err(|e| Error::Spec(format!("cannot start {n} threads: {e}")))?
+                .install(|| self.run_in_pool(exhaustive)),
+            None => self.run_in_pool(exhaustive),
+        }
+    }
+
+    fn run_in_pool(&self, exhaustive: bool) -> Result<Manifold> {
+        let tri = self.build_triangulation()?;
+        let f = &*self.function;
+        let progress = self.progress.clone();
+        let report_progress = move |p: &Progress| {
+            if let Some(cb) = &progress {
+                cb(p)
+            }
+        };
+        let opts = TraceOptions {
+            bbox: self.bbox.clone(),
+            seeds: self.seeds.clone(),
+            search_samples: self.search,
+            search_seed: self.search_seed,
+            max_memory: self.max_memory,
+            cancel: self.cancel.clone(),
+            progress: Some(&report_progress),
+            warm: self.warm,
+        };
+        let cpu = CpuOracle::new(f);
+        #[cfg(feature = "gpu")]
+        let gpu = self.gpu_oracle()?;
+        #[cfg(feature = "gpu")]
+        let oracle: &dyn Oracle = match &gpu {
+            Some(o) => o,
+            None => &cpu,
+        };
+        #[cfg(not(feature = "gpu"))]
+        let oracle: &dyn Oracle = {
+            if self.backend == Backend::Gpu {
+                return Err(Error::Gpu(
+                    "this build of isomesh has no GPU backend (the `gpu` feature)".into(),
+                ));
+            }
+            &cpu
+        };
+        memory::reset_peak();
+        let base = memory::live_bytes();
+        let sample = if exhaustive {
+            trace::exhaustive(f, &tri, oracle, &opts)?
+        } else {
+            trace::trace(f, &tri, oracle, &opts)?
+        };
+        let peak = memory::peak_bytes().saturating_sub(base) as u64;
+        #[cfg(feature = "gpu")]
+        let backend = match &gpu {
+            Some(o) => BackendInfo::of_gpu(o),
+            None => BackendInfo::cpu(),
+        };
+        #[cfg(not(feature = "gpu"))]
+        let backend = BackendInfo::cpu();
+        let run = RunInfo {
+            name: self.name.clone(),
+            exhaustive,
+            bbox: self.bbox.clone(),
+            backend,
+            threads: rayon::current_num_threads(),
+            peak_memory_bytes: peak,
+            suspect_crossings: sample.suspect_crossings(f),
+        };
+        Ok(Manifold {
+            function: self.function.clone(),
+            bbox: self.bbox.clone(),
+            max_memory: self.max_memory,
+            report: Report::new(&sample, run),
+            sample,
+            complex: OnceLock::new(),
+        })
+    }
+
+    /// The GPU oracle the backend asks for, or `None` for the CPU.
+    #[cfg(feature = "gpu")]
+    fn gpu_oracle(&self) -> Result<Option<crate::gpu::GpuOracle<'_>>> {
+        use crate::gpu::{Gpu, GpuOracle};
+        let f = &*self.function;
+        let gpu = match self.backend {
+            Backend::Cpu => return Ok(None),
+            Backend::Gpu => {
+                if f.system().is_none() {
+                    return Err(Error::Gpu(
+                        "the GPU backend needs f in the equation language; a function given \
+                         as code runs on the CPU backend"
+                            .into(),
+                    ));
+                }
+                Gpu::open(true)?
+            }
+            Backend::Auto => {
+                if f.system().is_none() {
+                    return Ok(None);
+                }
+                match Gpu::open(false) {
+                    Ok(g) => g,
+                    Err(_) => return Ok(None),
+                }
+            }
+        };
+        GpuOracle::new(gpu, f, self.precision).map(Some)
+    }
+}
+
+/// M as a trace or scan found it: the sample S, and on demand its cell complex, topology,
+/// report and files. It keeps f, the box and the memory limit it was found with, so none of
+/// them is given again.
+pub struct Manifold {
+    function: Arc<dyn ImplicitFunction>,
+    bbox: Option<Vec<[f64; 2]>>,
+    max_memory: u64,
+    sample: Sample,
+    report: Report,
+    complex: OnceLock<(Complex, Topology, f64)>,
+}
+
+/// How [`Manifold::write_with`] writes a file.
+#[derive(Clone, Debug, Default)]
+pub struct WriteOptions {
+    /// The format by name (`csv`, `xyz`, `ply`, `obj`, `off`, `stl`, `mesh`, `vtu`, `npz`),
+    /// overriding the file extension.
+    pub format: Option<String>,
+    /// How R^d is seen in 3-D: `auto` (the default), `pca`, or coordinates such as `1,2,4`.
+    pub projection: Option<String>,
+}
+
+impl Manifold {
+    /// The sample: crossed k-simplices (keys) in a deterministic order.
+    pub fn sample(&self) -> &Sample {
+        &self.sample
+    }
+
+    /// How many crossed k-simplices (points of M) were found.
+    pub fn len(&self) -> usize {
+        self.sample.len()
+    }
+
+    /// Whether nothing was found.
+    pub fn is_empty(&self) -> bool {
+        self.sample.is_empty()
+    }
+
+    /// One point of M per crossed simplex, d coordinates each, in the sample's order.
+    pub fn points(&self) -> Vec<f64> {
+        self.sample.points()
+    }
+
+    /// False when the run stopped early (cancel flag, memory limit).
+    pub fn complete(&self) -> bool {
+        self.sample.stats.stopped.is_none()
+    }
+
+    /// f.
+    pub fn function(&self) -> &dyn ImplicitFunction {
+        &*self.function
+    }
+
+    /// The cell complex, built on first use (clipped by the box and f's boundary
+    /// inequalities, within the memory limit).
+    pub fn complex(&self) -> Result<&Complex> {
+        self.built().map(|c| &c.0)
+    }
+
+    /// The complex's topology (counts, Euler characteristic, manifoldness, Betti numbers).
+    pub fn topology(&self) -> Result<&Topology> {
+        self.built().map(|c| &c.1)
+    }
+
+    fn built(&self) -> Result<&(Complex, Topology, f64)> {
+        if let Some(c) = self.complex.get() {
+            return Ok(c);
+        }
+        if self.sample.is_empty() {
+            return Err(Error::Trace(
+                "nothing was found: there is no complex to build".into(),
+            ));
+        }
+        let c = Complex::build_within(
+            &self.sample,
+            &*self.function,
+            self.bbox.as_deref(),
+            self.max_memory,
+        )?;
+        let t0 = Instant::now();
+        let t = c.topology();
+        let secs = t0.elapsed().as_secs_f64();
+        Ok(self.complex.get_or_init(|| (c, t, secs)))
+    }
+
+    /// The report, with the complex's keys once the complex is built: the keys of
+    /// `isomesh trace --report`.
+    pub fn report(&self) -> Report {
+        match self.complex.get() {
+            Some((c, t, secs)) => self
+                .report
+                .clone()
+                .with_complex(ComplexReport::new(c, t, *secs, "auto"), t.components),
+            None => self.report.clone(),
+        }
+    }
+
+    /// Writes the sample (`.csv`, `.xyz`, `.txt`) or the mesh (`.ply`, `.obj`, `.off`, `.stl`,
+    /// `.mesh`, `.vtu`, `.npz`), chosen by the extension; the mesh builds the complex.
+    pub fn write(&self, path: impl AsRef<Path>) -> Result<()> {
+        self.write_with(path, &WriteOptions::default())
+    }
+
+    /// [`write`](Self::write) with a format and a projection.
+    pub fn write_with(&self, path: impl AsRef<Path>, opts: &WriteOptions) -> Result<()> {
+        let path = path.as_ref();
+        match OutputFormat::for_path(path, opts.format.as_deref())? {
+            OutputFormat::Sample(format) => write_sample(path, &self.sample, format),
+            OutputFormat::Mesh(format) => {
+                let c = self.complex()?;
+                format.check_holds(c.dim(), path)?;
+                let mesh = self.mesh(c, opts.projection.as_deref())?;
+                write_mesh(path, &mesh, format)
+            }
+        }
+    }
+
+    /// Draws the mesh into a PNG picture of `width` x `height` pixels.
+    pub fn picture(&self, path: impl AsRef<Path>, width: usize, height: usize) -> Result<()> {
+        let (c, t, _) = self.built()?;
+        let mesh = self.mesh(c, None)?;
+        let caption = format!(
+            "{}: {}-manifold in R^{}, chi = {}",
+            self.report.name,
+            t.dim,
+            c.ambient_dim(),
+            t.euler_characteristic
+        );
+        Picture::render(&mesh, width, height, &caption)?.write_png(path.as_ref())
+    }
+
+    fn mesh<'a>(&'a self, c: &'a Complex, projection: Option<&str>) -> Result<Mesh<'a>> {
+        let projection = Projection::parse(projection.unwrap_or("auto"), c.ambient_dim())?;
+        Ok(Mesh::new(
+            c,
+            Some(&*self.function),
+            &projection,
+            &self.report.name,
+        ))
+    }
+}
+
+impl std::fmt::Debug for Manifold {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Manifold")
+            .field("name", &self.report.name)
+            .field("simplex_count", &self.sample.len())
+            .field("complete", &self.complete())
+            .finish_non_exhaustive()
+    }
+}
