@@ -4,9 +4,10 @@
 
 Runs A and B alternately (A B A B ...) and prints medians and ratios:
 - every tracing reference case, `isomesh trace --preset P --edge E --no-complex` (a fresh
-  process; its report's in-process `elapsed_s`, and the process's wall time) against
-  `Problem.preset(P, edge=E).trace()` in this process (wall time of the call); both give the
-  same points in the same order, checked first;
+  process: its report's `elapsed_s`, the trace itself, and the process's wall time) against
+  `Problem.preset(P, edge=E).trace()` in this process (its report's `elapsed_s`, and the wall
+  time of the whole call: trace, suspect-crossing count, report); both give the same points
+  in the same order, checked first;
 - the torus as an equation against the same f as a NumPy function: whole trace time, and the
   callable's points per second.
 """
@@ -83,24 +84,28 @@ def main():
             args = cli_args(preset, params, edge)
             if a.threads:
                 args += ["--threads", str(a.threads)]
-            cli_in, cli_wall, py = [], [], []
+            cli_in, cli_wall, py, py_in = [], [], [], []
             for _ in range(a.rounds):
                 e, w = run_cli(a.cli, args, tmp)
                 cli_in.append(e)
                 cli_wall.append(w)
                 t0 = time.perf_counter()
-                p.trace(threads=a.threads)
+                s = p.trace(threads=a.threads)
                 py.append(time.perf_counter() - t0)
+                py_in.append(s.report["elapsed_s"])
             m = {k: statistics.median(v) for k, v in
-                 (("cli_elapsed_s", cli_in), ("cli_process_s", cli_wall), ("python_s", py))}
+                 (("cli_elapsed_s", cli_in), ("cli_process_s", cli_wall), ("python_s", py),
+                  ("python_elapsed_s", py_in))}
             rows.append({"case": label, "simplices": n, "same_points": same, **m,
+                         "elapsed_ratio": m["python_elapsed_s"] / m["cli_elapsed_s"],
                          "python_over_cli_elapsed": m["python_s"] / m["cli_elapsed_s"],
                          "python_over_cli_process": m["python_s"] / m["cli_process_s"]})
             r = rows[-1]
-            print(f"{label:20} {n:>8} same={same}  cli {m['cli_elapsed_s']:.4f} s "
-                  f"(process {m['cli_process_s']:.4f} s)  python {m['python_s']:.4f} s  "
-                  f"ratio {r['python_over_cli_elapsed']:.3f} "
-                  f"({r['python_over_cli_process']:.3f} of the process)", flush=True)
+            print(f"{label:20} {n:>8} same={same}  elapsed_s: cli {m['cli_elapsed_s']:.4f} "
+                  f"python {m['python_elapsed_s']:.4f} ratio {r['elapsed_ratio']:.3f}; "
+                  f"whole call {m['python_s']:.4f} s against the process "
+                  f"{m['cli_process_s']:.4f} s, ratio {r['python_over_cli_process']:.3f}",
+                  flush=True)
 
         seeds = [[1.4, 0.0, 0.0]]
         text = isomesh.Problem(["(sqrt(x^2 + y^2) - 1)^2 + z^2 - 0.16"], seeds=seeds, edge=0.05)
