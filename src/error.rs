@@ -16,9 +16,11 @@ pub enum Error {
     #[error("invalid simplex: {0}")]
     InvalidSimplex(String),
     /// A NaN or infinite value where a finite number is required.
-    #[error("non-finite value {value} at coordinate {index}")]
+    #[error("non-finite value {value} in {what}, coordinate {} (counting from 1)", index + 1)]
     NonFinite {
-        /// Index of the offending coordinate.
+        /// What holds it ("seed 2", "the offset"...).
+        what: String,
+        /// Index of the offending coordinate (from 0).
         index: usize,
         /// The value itself.
         value: f64,
@@ -27,7 +29,11 @@ pub enum Error {
     #[error("invalid triangulation: {0}")]
     Triangulation(String),
     /// A lattice coordinate too large for the compact key.
-    #[error("lattice coordinate {value} does not fit a {bits}-bit key field")]
+    #[error(
+        "a point lies {} lattice steps from the origin, more than a {bits}-bit key field holds: \
+         use a larger edge, a smaller box, or seeds nearer the origin",
+        if value.unsigned_abs() >= 1 << 62 { "too many".to_string() } else { value.to_string() }
+    )]
     KeyOverflow {
         /// The coordinate.
         value: i64,
@@ -59,8 +65,14 @@ pub type Result<T, E = Error> = std::result::Result<T, E>;
 
 /// Checks that every value is finite, naming the first that is not.
 pub fn check_finite(values: &[f64]) -> Result<()> {
+    check_finite_in(values, "a point")
+}
+
+/// [`check_finite`], saying the values are those of `what` ("seed 2", "the offset"...).
+pub fn check_finite_in(values: &[f64], what: &str) -> Result<()> {
     match values.iter().position(|v| !v.is_finite()) {
         Some(index) => Err(Error::NonFinite {
+            what: what.to_string(),
             index,
             value: values[index],
         }),

@@ -61,6 +61,15 @@ pub fn peak_bytes() -> usize {
     PEAK.load(Ordering::Relaxed)
 }
 
+/// Heap bytes in use: the counted live heap where [`CountingAlloc`] is the global allocator,
+/// else `estimate` (what the caller knows it holds).
+pub fn in_use(estimate: usize) -> u64 {
+    match live_bytes() {
+        0 => estimate as u64,
+        live => live as u64,
+    }
+}
+
 /// Restarts peak tracking from the current live size.
 pub fn reset_peak() {
     PEAK.store(LIVE.load(Ordering::Relaxed), Ordering::Relaxed);

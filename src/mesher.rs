@@ -13,8 +13,8 @@
 //! # Ok::<(), isomesh::Error>(())
 //! ```
 //!
-//! The layers below ([`trace::trace`](crate::trace::trace), [`Complex`],
-//! [`export`](crate::export)) stay public for callers that need them.
+//! The layers below ([`trace::trace`], [`Complex`],
+//! [`export`](crate::export)) stay public for callers who need them.
 
 use std::path::Path;
 use std::sync::atomic::AtomicBool;
@@ -379,7 +379,9 @@ impl Mesher {
             backend,
             threads: rayon::current_num_threads(),
             peak_memory_bytes: peak,
+            max_memory_bytes: self.max_memory,
             suspect_crossings: sample.suspect_crossings(f),
+            singular_seeds: Vec::new(),
         };
         Ok(Manifold {
             function: self.function.clone(),

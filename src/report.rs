@@ -115,8 +115,11 @@ pub struct Report {
     pub elapsed_s: f64,
     /// `simplex_count / elapsed_s`.
     pub simplices_per_s: f64,
-    /// Heap high-water mark during the trace, bytes (0 without the counting allocator).
+    /// Heap high-water mark of the run, bytes (0 without the counting allocator): the whole
+    /// run from the command line (parsing to export), the trace from the library.
     pub peak_memory_bytes: u64,
+    /// The memory limit, bytes.
+    pub max_memory_bytes: u64,
     /// `peak_memory_bytes / simplex_count`.
     pub bytes_per_simplex: f64,
     /// Breadth-first levels.
@@ -140,12 +143,18 @@ pub struct Report {
     /// Crossings where f looks like it has a pole or a jump (see
     /// [`Sample::suspect_crossings`]).
     pub suspect_crossings: usize,
-    /// False when the run stopped early (Ctrl-C, memory limit).
+    /// Seeds (from 1) where the Jacobian of f is rank-deficient: the trace follows at most
+    /// one branch from each.
+    pub singular_seeds: Vec<usize>,
+    /// False when the run stopped early (Ctrl-C, memory limit, no box for an unbounded M),
+    /// found nothing, or a later phase failed.
     pub complete: bool,
     /// Why it stopped early.
     pub stopped: Option<String>,
-    /// What failed after tracing (the complex or a file), if anything.
+    /// What failed after tracing (the complex or a file), or why nothing was found.
     pub error: Option<String>,
+    /// Requested files that were not written.
+    pub not_written: Vec<String>,
     /// The cell complex's figures, when it was built.
     #[serde(flatten)]
     pub complex: Option<ComplexReport>,
@@ -222,10 +231,14 @@ pub struct RunInfo {
     pub backend: BackendInfo,
     /// Worker threads.
     pub threads: usize,
-    /// Heap high-water mark of the trace, bytes.
+    /// Heap high-water mark of the run, bytes.
     pub peak_memory_bytes: u64,
+    /// The memory limit, bytes.
+    pub max_memory_bytes: u64,
     /// [`Sample::suspect_crossings`].
     pub suspect_crossings: usize,
+    /// Seeds (from 1) at a singular point of f.
+    pub singular_seeds: Vec<usize>,
 }
 
 impl Report {
@@ -258,6 +271,7 @@ impl Report {
             elapsed_s: st.elapsed_s,
             simplices_per_s: per(n as f64, st.elapsed_s),
             peak_memory_bytes: run.peak_memory_bytes,
+            max_memory_bytes: run.max_memory_bytes,
             bytes_per_simplex: per(run.peak_memory_bytes as f64, n as f64),
             levels: st.levels,
             widest_level: st.widest_level,
@@ -269,9 +283,11 @@ impl Report {
             vertices_evaluated: st.vertices,
             seed_points: st.seed_points,
             suspect_crossings: run.suspect_crossings,
+            singular_seeds: run.singular_seeds,
             complete: st.stopped.is_none(),
             stopped: st.stopped.as_ref().map(ToString::to_string),
             error: None,
+            not_written: Vec::new(),
             complex: None,
         }
     }

@@ -7,7 +7,9 @@ use std::sync::atomic::AtomicBool;
 use std::sync::Arc;
 
 use isomesh::expr::ClosureFunction;
-use isomesh::{Backend, Error, Mesher};
+#[cfg(feature = "gpu")]
+use isomesh::Error;
+use isomesh::{Backend, Mesher};
 
 /// A scratch folder, removed when dropped.
 struct Scratch(PathBuf);

@@ -345,6 +345,7 @@ impl Problem {
                     seeds,
                     bbox: r#box,
                     triangulation: Some(t),
+                    ..Spec::default()
                 };
                 let p = spec
                     .resolve(name.as_deref().unwrap_or("problem"))

@@ -9,7 +9,7 @@ import isomesh
 def test_malformed_equation_names_line_and_column():
     with pytest.raises(ValueError, match=r"line 1, column \d+"):
         isomesh.Problem(["x^2 + * y"], ambient_dim=3)
-    with pytest.raises(ValueError, match=r"line 2, column \d+"):
+    with pytest.raises(ValueError, match=r"line \d+, column \d+ \(equation 2"):
         isomesh.Problem(["x^2 + y^2 + z^2 - 1", "x + (y"], ambient_dim=3)
 
 

@@ -244,13 +244,32 @@ fn interrupt_flag() -> Arc<AtomicBool> {
     .clone()
 }
 
+/// Most worker threads per core `--threads` may ask for.
+const MAX_THREADS_PER_CORE: usize = 4;
+/// Most worker threads in all.
+const MAX_THREADS: usize = 1024;
+
+/// The most worker threads a trace runs.
+fn max_threads() -> usize {
+    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+    (cores * MAX_THREADS_PER_CORE).min(MAX_THREADS)
+}
+
 /// Runs `isomesh trace` with `args`.
 pub fn run(args: &TraceArgs) -> Result<()> {
     let mut problem = load(args.spec.clone(), args.preset.clone(), &args.params)?;
     apply_flags(&mut problem, args)?;
-    let threads = args.threads.unwrap_or_else(rayon::current_num_threads);
+    let mut threads = args.threads.unwrap_or_else(rayon::current_num_threads);
     if threads == 0 {
         return Err(Error::Spec("--threads must be at least 1".into()));
+    }
+    let cap = max_threads();
+    if threads > cap {
+        eprintln!(
+            "warning: --threads {threads} is more than this machine can use: running {cap} \
+             (at most {MAX_THREADS_PER_CORE} per core, and at most {MAX_THREADS})"
+        );
+        threads = cap;
     }
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(threads)
@@ -361,14 +380,16 @@ fn run_in_pool(p: &Problem, args: &TraceArgs, threads: usize) -> Result<()> {
         warm: true,
         ..TraceOptions::default()
     };
-    memory::reset_peak();
+    let limit = opts.max_memory;
+    check_not_zero(p, &tri)?;
+    let singular_seeds = singular_seeds(p, tri.edge(), args.quiet);
     let base = memory::live_bytes();
     let sample = if args.exhaustive {
         exhaustive(sys, &tri, oracle, &opts)?
     } else {
         trace(sys, &tri, oracle, &opts)?
     };
-    let peak = memory::peak_bytes().saturating_sub(base);
+    let trace_peak = memory::peak_bytes().saturating_sub(base);
     bar.finish_and_clear();
     let suspect = sample.suspect_crossings(sys);
     if suspect > 0 {
@@ -410,7 +431,6 @@ fn run_in_pool(p: &Problem, args: &TraceArgs, threads: usize) -> Result<()> {
     let complex = if args.no_complex || sample.is_empty() {
         None
     } else {
-        let limit = args.max_memory.unwrap_or_else(memory::default_limit);
         match Complex::build_within(&sample, sys, p.bbox.as_deref(), limit) {
             Ok(c) => {
                 let t0 = Instant::now();
@@ -425,8 +445,11 @@ fn run_in_pool(p: &Problem, args: &TraceArgs, threads: usize) -> Result<()> {
         }
     };
     if let (Some((c, topo, _)), true) = (&complex, wants_mesh) {
-        let mesh = Mesh::new(c, Some(sys), &projection, &p.name);
         let mut write = || -> Result<()> {
+            // Vertices in R^3 and the polygons as triangles, generously.
+            let cells: usize = topo.cells.iter().sum();
+            check_memory("the mesh", 48 * topo.cells[0] + 64 * cells, limit)?;
+            let mesh = Mesh::new(c, Some(sys), &projection, &p.name);
             for (path, kind) in args.out.iter().zip(&outputs) {
                 if let Output::Mesh(format) = kind {
                     write_mesh(path, &mesh, *format)?;
@@ -435,6 +458,7 @@ fn run_in_pool(p: &Problem, args: &TraceArgs, threads: usize) -> Result<()> {
             }
             if let Some(path) = &args.png {
                 let (w, h) = args.png_size;
+                check_memory("the picture", w.saturating_mul(h).saturating_mul(16), limit)?;
                 let pic = Picture::render(&mesh, w, h, &caption(&p.name, d, topo))?;
                 pic.write_png(path)?;
                 written.push(path.clone());
@@ -447,6 +471,15 @@ fn run_in_pool(p: &Problem, args: &TraceArgs, threads: usize) -> Result<()> {
     }
     let st = &sample.stats;
     let n = sample.len();
+    let peak = memory::peak_bytes();
+    let empty = (n == 0 && st.stopped.is_none()).then(|| empty_reason(st, args));
+    let not_written: Vec<String> = args
+        .out
+        .iter()
+        .chain(&args.png)
+        .filter(|f| !written.contains(f))
+        .map(|f| f.display().to_string())
+        .collect();
     let per_s = if st.elapsed_s > 0.0 {
         n as f64 / st.elapsed_s
     } else {
@@ -464,10 +497,17 @@ fn run_in_pool(p: &Problem, args: &TraceArgs, threads: usize) -> Result<()> {
             backend,
             threads,
             peak_memory_bytes: peak as u64,
+            max_memory_bytes: limit,
             suspect_crossings: suspect,
+            singular_seeds,
         };
         let mut report = Report::new(&sample, run);
-        report.error = failure.as_ref().map(|e| e.to_string());
+        report.error = failure
+            .as_ref()
+            .map(|e| e.to_string())
+            .or_else(|| empty.clone());
+        report.complete &= failure.is_none() && empty.is_none();
+        report.not_written = not_written.clone();
         if let Some((c, t, topo_s)) = &complex {
             report = report.with_complex(
                 ComplexReport::new(c, t, *topo_s, &args.project),
@@ -490,8 +530,12 @@ fn run_in_pool(p: &Problem, args: &TraceArgs, threads: usize) -> Result<()> {
             st.elapsed_s,
             per_s,
             if threads == 1 { "" } else { "s" },
-            peak as f64 / (1 << 20) as f64,
-            if n > 0 { peak as f64 / n as f64 } else { 0.0 },
+            trace_peak as f64 / (1 << 20) as f64,
+            if n > 0 {
+                trace_peak as f64 / n as f64
+            } else {
+                0.0
+            },
         );
         if let Some((c, t, topo_s)) = &complex {
             println!("{}", summary(t, c.stats.elapsed_s + topo_s));
@@ -500,12 +544,23 @@ fn run_in_pool(p: &Problem, args: &TraceArgs, threads: usize) -> Result<()> {
             println!("wrote {}", f.display());
         }
     }
+    let unwritten = if not_written.is_empty() {
+        String::new()
+    } else {
+        format!("; not written: {}", not_written.join(", "))
+    };
+    if let Some(why) = empty {
+        return Err(Error::Trace(format!("{why}{unwritten}")));
+    }
     if let (Some(e), None) = (failure, &st.stopped) {
+        if !not_written.is_empty() {
+            eprintln!("not written: {}", not_written.join(", "));
+        }
         return Err(e);
     }
     if let Some(stop) = &st.stopped {
         return Err(Error::Trace(format!(
-            "{stop}; the {n} simplices found so far were kept{}",
+            "{stop}; the {n} simplices found so far were kept{}{unwritten}",
             if written.is_empty() {
                 ""
             } else {
@@ -514,6 +569,110 @@ fn run_in_pool(p: &Problem, args: &TraceArgs, threads: usize) -> Result<()> {
         )));
     }
     Ok(())
+}
+
+/// Fails when `extra` more heap bytes would pass `limit`.
+fn check_memory(what: &str, extra: usize, limit: u64) -> Result<()> {
+    let live = memory::in_use(0);
+    let need = live.saturating_add(extra as u64);
+    if need > limit {
+        return Err(Error::Trace(format!(
+            "{what} needs about {:.1} MiB on top of {:.1} MiB in use, over the memory limit of \
+             {:.1} MiB (raise --max-memory, or use a larger edge)",
+            extra as f64 / (1u64 << 20) as f64,
+            live as f64 / (1u64 << 20) as f64,
+            limit as f64 / (1u64 << 20) as f64
+        )));
+    }
+    Ok(())
+}
+
+/// Why a trace that found nothing found nothing.
+fn empty_reason(st: &isomesh::trace::TraceStats, args: &TraceArgs) -> String {
+    let why = if st.non_finite > 0 {
+        format!(
+            "f is NaN or infinite at {} of the points tried (non_finite in the report) and \
+             crosses 0 nowhere else",
+            st.non_finite
+        )
+    } else if st.seed_points == 0 && args.seeds.is_empty() {
+        "the seed search found no point of M in the box (f may have no zero there: give a \
+         seed, a larger --search or another box)"
+            .to_string()
+    } else {
+        "M was not met: f has no zero in the box at this edge (give a seed, a smaller edge or \
+         another box)"
+            .to_string()
+    };
+    format!("no crossed simplex was found: {why}")
+}
+
+/// Points where `p`'s equations are tried for being identically 0: 64 points of the box, or
+/// within 100 edges (at least a millionth of their size) of the seeds when there is no box
+/// (seeded, so the same each run).
+fn probe_points(p: &Problem, edge: f64) -> Vec<f64> {
+    use rand::{Rng, SeedableRng};
+    let d = p.dim();
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(7);
+    let mut pts = Vec::with_capacity(64 * d);
+    for i in 0..64 {
+        for c in 0..d {
+            let (lo, hi) = match (&p.bbox, p.seeds.get(i % p.seeds.len().max(1))) {
+                (Some(b), _) => (b[c][0], b[c][1]),
+                (None, Some(s)) => {
+                    // Wide enough to move every coordinate, however fine the edge.
+                    let r = (100.0 * edge).max(1e-6 * s[c].abs().max(1.0));
+                    (s[c] - r, s[c] + r)
+                }
+                (None, None) => return pts,
+            };
+            pts.push(rng.random_range(lo..=hi));
+        }
+    }
+    pts
+}
+
+/// Refuses an equation that is 0 at every probe point: its zero set is no manifold, and
+/// tracing it would report every simplex as degenerate.
+fn check_not_zero(p: &Problem, tri: &isomesh::triangulation::Triangulation) -> Result<()> {
+    let pts = probe_points(p, tri.edge());
+    match isomesh::expr::zero_equation_at(&p.system, &pts) {
+        Some(i) => Err(Error::Spec(format!(
+            "equation {} is 0 at all of {} points tried {}: it is identically 0 there, and its \
+             zero set is no manifold",
+            i + 1,
+            pts.len() / p.dim(),
+            if p.bbox.is_some() {
+                "in the box"
+            } else {
+                "around the seeds"
+            }
+        ))),
+        None => Ok(()),
+    }
+}
+
+/// The seeds (1-based) at which f's Jacobian is rank-deficient, each warned about.
+fn singular_seeds(p: &Problem, edge: f64, quiet: bool) -> Vec<usize> {
+    let mut out = Vec::new();
+    for (i, s) in p.seeds.iter().enumerate() {
+        let Ok(x) = isomesh::expr::newton_project(&p.system, s, isomesh::trace::SEED_TOLERANCE)
+        else {
+            continue;
+        };
+        if isomesh::expr::is_singular_at(&p.system, &x, edge) {
+            out.push(i + 1);
+            if !quiet {
+                eprintln!(
+                    "warning: seed {} projects to {x:?}, where the Jacobian of f is \
+                     rank-deficient (a crossing of branches, a cusp): the trace follows at most \
+                     one branch from there; move the seed off the singular point",
+                    i + 1
+                );
+            }
+        }
+    }
+    out
 }
 
 /// The caption of pictures.

@@ -66,7 +66,10 @@ fn raw_levels<const W: usize>(
             .map(|l: &RawLevel| l.cells.facets.len() * 4 + l.cells.offsets.len() * 5)
             .sum::<usize>()
             + prev.len() * (W * 8 + 1);
-        let need = count * std::mem::size_of::<([u64; W], u32)>() as u64 + held as u64;
+        // On top of the heap in use (the sample, the levels so far, `prev`): the pairs, and
+        // the next level's keys.
+        let need = crate::memory::in_use(held + s.memory_bytes())
+            + count * (std::mem::size_of::<([u64; W], u32)>() + W * 8 + 5) as u64;
         if need > max_memory {
             return Err(Error::Trace(format!(
                 "the cell complex needs about {:.1} MiB for its {j}-cells, over the memory limit \

@@ -337,18 +337,33 @@ impl Expr {
             }
             E::PowI(a, n) => {
                 let da = a.diff(v);
+                if da.is(0.0) {
+                    return num(0.0);
+                }
                 E::mul(E::mul(num(*n as f64), E::powi((**a).clone(), n - 1)), da)
             }
             E::Bin(op, a, b) => {
                 let (da, db) = (a.diff(v), b.diff(v));
-                let (a, b) = ((**a).clone(), (**b).clone());
+                if da.is(0.0) && db.is(0.0) {
+                    return num(0.0);
+                }
+                // Operands are copied only where the derivative uses them (copying them at
+                // every level of a sum made long sums quadratic).
+                let ab = || ((**a).clone(), (**b).clone());
                 match op {
                     Op2::Add => E::add(da, db),
                     Op2::Sub => E::sub(da, db),
-                    Op2::Mul => E::add(E::mul(da, b), E::mul(a, db)),
-                    Op2::Div => E::div(E::sub(E::mul(da, b.clone()), E::mul(a, db)), E::powi(b, 2)),
+                    Op2::Mul => {
+                        let (a, b) = ab();
+                        E::add(E::mul(da, b), E::mul(a, db))
+                    }
+                    Op2::Div => {
+                        let (a, b) = ab();
+                        E::div(E::sub(E::mul(da, b.clone()), E::mul(a, db)), E::powi(b, 2))
+                    }
                     Op2::Pow => {
                         // d(a^b) = a^b (b' ln a + b a' / a)
+                        let (a, b) = ab();
                         let p = E::bin(Op2::Pow, a.clone(), b.clone());
                         let t1 = E::mul(db, E::un(Op1::Ln, a.clone()));
                         let t2 = E::div(E::mul(b, da), a);
@@ -356,11 +371,13 @@ impl Expr {
                     }
                     Op2::Atan2 => {
                         // atan2(a, b)' = (b a' - a b') / (a^2 + b^2)
+                        let (a, b) = ab();
                         let den = E::add(E::powi(a.clone(), 2), E::powi(b.clone(), 2));
                         E::div(E::sub(E::mul(b, da), E::mul(a, db)), den)
                     }
                     Op2::Min | Op2::Max => {
                         // s = sign(a - b); min' = ((1 - s) a' + (1 + s) b') / 2, max swaps.
+                        let (a, b) = ab();
                         let s = E::un(Op1::Sign, E::sub(a, b));
                         let (wa, wb) = if *op == Op2::Min {
                             (E::sub(num(1.0), s.clone()), E::add(num(1.0), s))

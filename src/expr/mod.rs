@@ -12,4 +12,7 @@ pub use ast::{Expr, Op1, Op2};
 pub use parser::{parse_expr, parse_system, ErrorKind, ParseError, Scope};
 pub use presets::{preset, preset_names, preset_spec, PresetInfo, PRESETS};
 pub use spec::{Problem, Spec, TriangulationSpec};
-pub use system::{newton_project, ClosureFunction, EquationSystem, ImplicitFunction};
+pub use system::{
+    is_singular_at, newton_project, zero_equation_at, ClosureFunction, EquationSystem,
+    ImplicitFunction,
+};

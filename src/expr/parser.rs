@@ -1,4 +1,4 @@
-//! Lexer and Pratt parser for the equation language. Every error names its kind, line and
+//! Lexer and recursive-descent parser for the equation language. Every error names its kind, line and
 //! column; nothing here panics on any input.
 
 use std::fmt;
@@ -30,6 +30,10 @@ pub enum ErrorKind {
     DuplicateName,
     /// A constant sub-expression that is NaN or infinite (such as `1/0` or `sqrt(-1)`).
     NonFinite,
+    /// More than [`MAX_TOKENS`] tokens in one equation.
+    TooLarge,
+    /// More than [`MAX_DEPTH`] nested levels.
+    TooDeep,
 }
 
 /// A parse error with its position (1-based line and column, in characters).
@@ -43,15 +47,26 @@ pub struct ParseError {
     pub column: usize,
     /// A sentence for people.
     pub message: String,
+    /// Which text it is in ("equation 2", "boundary inequality 1", "equation 2 of the spec
+    /// file", where line and column are then the file's); empty when not known.
+    pub context: String,
+}
+
+impl ParseError {
+    /// The same error, said to be in `context`.
+    pub fn within(mut self, context: impl Into<String>) -> Self {
+        self.context = context.into();
+        self
+    }
 }
 
 impl fmt::Display for ParseError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        write!(
-            f,
-            "line {}, column {}: {}",
-            self.line, self.column, self.message
-        )
+        write!(f, "line {}, column {}", self.line, self.column)?;
+        if !self.context.is_empty() {
+            write!(f, " ({})", self.context)?;
+        }
+        write!(f, ": {}", self.message)
     }
 }
 
@@ -78,36 +93,90 @@ fn err(kind: ErrorKind, line: usize, column: usize, message: impl Into<String>) 
         line,
         column,
         message: message.into(),
+        context: String::new(),
     }
 }
 
-/// Splits one equation into tokens; `line` is the line the text sits on.
-fn lex(text: &str, line: usize) -> Result<Vec<Token>, ParseError> {
-    let chars: Vec<char> = text.chars().collect();
-    let mut out = Vec::new();
-    let mut i = 0;
-    while i < chars.len() {
-        let c = chars[i];
-        let column = i + 1;
-        if c.is_whitespace() {
-            i += 1;
-        } else if c.is_ascii_digit()
-            || (c == '.' && chars.get(i + 1).is_some_and(|d| d.is_ascii_digit()))
+/// Most tokens (numbers, names, operators) one equation may have: parsing keeps the whole tree
+/// in memory (about 60 bytes a token once compiled), so the cap bounds that memory.
+pub const MAX_TOKENS: usize = 10_000_000;
+
+/// Reads one equation token by token, so that no token list is held in memory.
+struct Lexer<'a> {
+    text: &'a str,
+    /// Byte position of the next character.
+    pos: usize,
+    /// 1-based column (in characters) of the next character.
+    column: usize,
+    line: usize,
+    count: usize,
+}
+
+impl Lexer<'_> {
+    fn peek_char(&self, ahead: usize) -> Option<char> {
+        self.text[self.pos..].chars().nth(ahead)
+    }
+
+    fn bump(&mut self) -> Option<char> {
+        let c = self.text[self.pos..].chars().next()?;
+        self.pos += c.len_utf8();
+        if c == '\n' {
+            self.line += 1;
+            self.column = 1;
+        } else {
+            self.column += 1;
+        }
+        Some(c)
+    }
+
+    fn token(&self, tok: Tok, column: usize) -> Token {
+        Token {
+            tok,
+            line: self.line,
+            column,
+        }
+    }
+
+    /// The next token (`Tok::End` at the end, again and again).
+    fn next_token(&mut self) -> Result<Token, ParseError> {
+        while self.peek_char(0).is_some_and(char::is_whitespace) {
+            self.bump();
+        }
+        let (line, column) = (self.line, self.column);
+        let Some(c) = self.peek_char(0) else {
+            return Ok(self.token(Tok::End, column));
+        };
+        self.count += 1;
+        if self.count > MAX_TOKENS {
+            return Err(err(
+                ErrorKind::TooLarge,
+                line,
+                column,
+                format!(
+                    "the equation has more than {MAX_TOKENS} tokens (numbers, names, operators): \
+                     write it in fewer terms"
+                ),
+            ));
+        }
+        let start = self.pos;
+        if c.is_ascii_digit() || (c == '.' && self.peek_char(1).is_some_and(|d| d.is_ascii_digit()))
         {
-            let start = i;
-            while i < chars.len() && (chars[i].is_ascii_digit() || chars[i] == '.') {
-                i += 1;
+            while self
+                .peek_char(0)
+                .is_some_and(|c| c.is_ascii_digit() || c == '.')
+            {
+                self.bump();
             }
-            if i < chars.len() && (chars[i] == 'e' || chars[i] == 'E') {
-                let mut j = i + 1;
-                if j < chars.len() && (chars[j] == '+' || chars[j] == '-') {
-                    j += 1;
-                }
-                if j < chars.len() && chars[j].is_ascii_digit() {
-                    while j < chars.len() && chars[j].is_ascii_digit() {
-                        j += 1;
+            if matches!(self.peek_char(0), Some('e' | 'E')) {
+                let sign = usize::from(matches!(self.peek_char(1), Some('+' | '-')));
+                if self.peek_char(1 + sign).is_some_and(|c| c.is_ascii_digit()) {
+                    self.bump();
+                    if sign == 1 {
+                        self.bump();
                     }
-                    i = j;
+                    while self.peek_char(0).is_some_and(|c| c.is_ascii_digit()) {
+                        self.bump();
+                    }
                 } else {
                     return Err(err(
                         ErrorKind::BadNumber,
@@ -117,72 +186,53 @@ fn lex(text: &str, line: usize) -> Result<Vec<Token>, ParseError> {
                     ));
                 }
             }
-            let s: String = chars[start..i].iter().collect();
-            if i < chars.len() && (chars[i].is_alphanumeric() || chars[i] == '_') {
+            let s = &self.text[start..self.pos];
+            if let Some(n) = self
+                .peek_char(0)
+                .filter(|n| n.is_alphanumeric() || *n == '_')
+            {
                 return Err(err(
                     ErrorKind::BadNumber,
                     line,
                     column,
-                    format!(
-                        "malformed number '{s}{}': a name cannot start with a digit",
-                        chars[i]
-                    ),
+                    format!("malformed number '{s}{n}': a name cannot start with a digit"),
                 ));
             }
-            match s.parse::<f64>() {
-                Ok(v) if v.is_finite() => out.push(Token {
-                    tok: Tok::Num(v),
+            return match s.parse::<f64>() {
+                Ok(v) if v.is_finite() => Ok(self.token(Tok::Num(v), column)),
+                _ => Err(err(
+                    ErrorKind::BadNumber,
                     line,
                     column,
-                }),
-                _ => {
-                    return Err(err(
-                        ErrorKind::BadNumber,
-                        line,
-                        column,
-                        format!("malformed number '{s}'"),
-                    ))
-                }
-            }
-        } else if c.is_alphabetic() || c == '_' {
-            let start = i;
-            while i < chars.len() && (chars[i].is_alphanumeric() || chars[i] == '_') {
-                i += 1;
-            }
-            out.push(Token {
-                tok: Tok::Ident(chars[start..i].iter().collect()),
-                line,
-                column,
-            });
-        } else if c == '*' && chars.get(i + 1) == Some(&'*') {
-            out.push(Token {
-                tok: Tok::Op('^'),
-                line,
-                column,
-            });
-            i += 2;
-        } else if "+-*/^(),".contains(c) {
-            out.push(Token {
-                tok: Tok::Op(c),
-                line,
-                column,
-            });
-            i += 1;
-        } else {
-            return Err(err(
-                ErrorKind::UnexpectedChar,
-                line,
-                column,
-                format!("unexpected character '{c}'"),
-            ));
+                    format!("malformed number '{s}'"),
+                )),
+            };
         }
+        if c.is_alphabetic() || c == '_' {
+            while self
+                .peek_char(0)
+                .is_some_and(|c| c.is_alphanumeric() || c == '_')
+            {
+                self.bump();
+            }
+            let name = self.text[start..self.pos].to_string();
+            return Ok(self.token(Tok::Ident(name), column));
+        }
+        self.bump();
+        if c == '*' && self.peek_char(0) == Some('*') {
+            self.bump();
+            return Ok(self.token(Tok::Op('^'), column));
+        }
+        if "+-*/^(),".contains(c) {
+            return Ok(self.token(Tok::Op(c), column));
+        }
+        Err(err(
+            ErrorKind::UnexpectedChar,
+            line,
+            column,
+            format!("unexpected character '{c}'"),
+        ))
     }
-    out.push(Token {
-        tok: Tok::End,
-        line,
-        column: chars.len() + 1,
-    });
-    Ok(out)
 }
 
 /// Names an equation may use: variables (0-based index) and parameters (fixed values).
@@ -315,23 +365,61 @@ const FUNCTIONS: &[(&str, usize)] = &[
     ("pow", 2),
 ];
 
+/// Most nested levels (parentheses, calls, unary minus, exponents) an equation may have.
+pub const MAX_DEPTH: usize = 200;
+
+/// Chains of more terms than this (a + b - c ..., a * b / c ...) are built as balanced trees
+/// of left-to-right blocks of this many terms, so that a tree's depth grows with the log of
+/// its size: nothing that walks it recursively can exhaust the stack.
+const CHAIN_BLOCK: usize = 8;
+
 struct Parser<'a> {
-    toks: Vec<Token>,
-    pos: usize,
+    lexer: Lexer<'a>,
+    cur: Token,
     scope: &'a Scope,
+}
+
+/// A chain of operands joined by one precedence level's two operators: `inverse` marks the
+/// second operator (`-` or `/`).
+struct Chain {
+    items: Vec<(bool, Expr)>,
+    op: Op2,
+    inverse: Op2,
+}
+
+impl Chain {
+    /// The chain's value; `flip` swaps the operators (the first item is never inverted).
+    fn build(mut items: Vec<(bool, Expr)>, op: Op2, inverse: Op2, flip: bool) -> Expr {
+        if items.len() <= CHAIN_BLOCK {
+            let mut it = items.into_iter();
+            let Some((_, mut acc)) = it.next() else {
+                return Expr::Num(0.0);
+            };
+            for (inv, e) in it {
+                acc = Expr::bin(if inv != flip { inverse } else { op }, acc, e);
+            }
+            return acc;
+        }
+        let right = items.split_off(items.len() / 2);
+        let right_inverted = right[0].0 != flip;
+        let lhs = Chain::build(items, op, inverse, flip);
+        let rhs = Chain::build(right, op, inverse, flip != right_inverted);
+        Expr::bin(if right_inverted { inverse } else { op }, lhs, rhs)
+    }
+
+    fn finish(self) -> Expr {
+        Chain::build(self.items, self.op, self.inverse, false)
+    }
 }
 
 impl Parser<'_> {
     fn peek(&self) -> &Token {
-        &self.toks[self.pos]
+        &self.cur
     }
 
-    fn next(&mut self) -> Token {
-        let t = self.toks[self.pos].clone();
-        if self.pos + 1 < self.toks.len() {
-            self.pos += 1;
-        }
-        t
+    fn next(&mut self) -> Result<Token, ParseError> {
+        let t = self.lexer.next_token()?;
+        Ok(std::mem::replace(&mut self.cur, t))
     }
 
     fn unexpected(&self, t: &Token, wanted: &str) -> ParseError {
@@ -364,7 +452,7 @@ impl Parser<'_> {
     }
 
     fn expect(&mut self, c: char, wanted: &str) -> Result<(), ParseError> {
-        let t = self.next();
+        let t = self.next()?;
         if t.tok == Tok::Op(c) {
             Ok(())
         } else {
@@ -372,48 +460,80 @@ impl Parser<'_> {
         }
     }
 
-    /// Pratt loop: binding powers + - : 1/2, * / : 3/4, unary - : 5, ^ : 7/6 (right).
-    fn expr(&mut self, min_bp: u8, depth: usize) -> Result<Expr, ParseError> {
-        if depth > 200 {
+    fn check_depth(&self, depth: usize) -> Result<(), ParseError> {
+        if depth > MAX_DEPTH {
             let t = self.peek();
             return Err(err(
-                ErrorKind::UnexpectedToken,
+                ErrorKind::TooDeep,
                 t.line,
                 t.column,
-                "expression nested too deeply (over 200 levels)",
+                format!("expression nested too deeply (over {MAX_DEPTH} levels)"),
             ));
         }
-        let mut lhs = self.prefix(depth)?;
-        while let Tok::Op(op @ ('+' | '-' | '*' | '/' | '^')) = self.peek().tok {
-            let (lbp, rbp) = match op {
-                '+' | '-' => (1, 2),
-                '*' | '/' => (3, 4),
-                _ => (7, 6),
-            };
-            if lbp < min_bp {
-                break;
-            }
-            self.next();
-            let rhs = self.expr(rbp, depth + 1)?;
-            lhs = match op {
-                '+' => Expr::add(lhs, rhs),
-                '-' => Expr::sub(lhs, rhs),
-                '*' => Expr::mul(lhs, rhs),
-                '/' => Expr::div(lhs, rhs),
-                _ => Expr::bin(Op2::Pow, lhs, rhs),
-            };
-        }
-        Ok(lhs)
+        Ok(())
     }
 
-    fn prefix(&mut self, depth: usize) -> Result<Expr, ParseError> {
-        let t = self.next();
+    /// A sum or difference chain: terms joined by `+` and `-`.
+    fn expr(&mut self, depth: usize) -> Result<Expr, ParseError> {
+        self.check_depth(depth)?;
+        let mut chain = Chain {
+            items: vec![(false, self.product(depth)?)],
+            op: Op2::Add,
+            inverse: Op2::Sub,
+        };
+        while let Tok::Op(op @ ('+' | '-')) = self.peek().tok {
+            self.next()?;
+            chain.items.push((op == '-', self.product(depth)?));
+        }
+        Ok(chain.finish())
+    }
+
+    /// A product or quotient chain: factors joined by `*` and `/`.
+    fn product(&mut self, depth: usize) -> Result<Expr, ParseError> {
+        let mut chain = Chain {
+            items: vec![(false, self.unary(depth)?)],
+            op: Op2::Mul,
+            inverse: Op2::Div,
+        };
+        while let Tok::Op(op @ ('*' | '/')) = self.peek().tok {
+            self.next()?;
+            chain.items.push((op == '/', self.unary(depth)?));
+        }
+        Ok(chain.finish())
+    }
+
+    /// Unary `-` and `+` (binding looser than `^`, tighter than `*`), then a power.
+    fn unary(&mut self, depth: usize) -> Result<Expr, ParseError> {
+        self.check_depth(depth)?;
+        match self.peek().tok {
+            Tok::Op('-') => {
+                self.next()?;
+                Ok(Expr::neg(self.unary(depth + 1)?))
+            }
+            Tok::Op('+') => {
+                self.next()?;
+                self.unary(depth + 1)
+            }
+            _ => {
+                let base = self.primary(depth)?;
+                if self.peek().tok == Tok::Op('^') {
+                    self.next()?;
+                    // Right-associative: a^b^c = a^(b^c), and a^-b is allowed.
+                    let exponent = self.unary(depth + 1)?;
+                    Ok(Expr::bin(Op2::Pow, base, exponent))
+                } else {
+                    Ok(base)
+                }
+            }
+        }
+    }
+
+    fn primary(&mut self, depth: usize) -> Result<Expr, ParseError> {
+        let t = self.next()?;
         match t.tok {
             Tok::Num(v) => Ok(Expr::Num(v)),
-            Tok::Op('-') => Ok(Expr::neg(self.expr(5, depth + 1)?)),
-            Tok::Op('+') => self.expr(5, depth + 1),
             Tok::Op('(') => {
-                let e = self.expr(0, depth + 1)?;
+                let e = self.expr(depth + 1)?;
                 self.expect(')', "')'")?;
                 Ok(e)
             }
@@ -479,8 +599,8 @@ impl Parser<'_> {
         let mut args = Vec::new();
         if self.peek().tok != Tok::Op(')') {
             loop {
-                args.push(self.expr(0, depth + 1)?);
-                let sep = self.next();
+                args.push(self.expr(depth + 1)?);
+                let sep = self.next()?;
                 match sep.tok {
                     Tok::Op(',') => continue,
                     Tok::Op(')') => break,
@@ -488,7 +608,7 @@ impl Parser<'_> {
                 }
             }
         } else {
-            self.next();
+            self.next()?;
         }
         if args.len() != arity {
             return Err(err(
@@ -538,17 +658,20 @@ fn first_non_finite(e: &Expr) -> bool {
 
 /// Parses one expression written on line `line` of its source.
 pub fn parse_expr_at(text: &str, scope: &Scope, line: usize) -> Result<Expr, ParseError> {
-    let toks = lex(text, line)?;
-    if toks.len() == 1 {
+    let mut lexer = Lexer {
+        text,
+        pos: 0,
+        column: 1,
+        line,
+        count: 0,
+    };
+    let cur = lexer.next_token()?;
+    if cur.tok == Tok::End {
         return Err(err(ErrorKind::UnexpectedEnd, line, 1, "empty equation"));
     }
-    let mut p = Parser {
-        toks,
-        pos: 0,
-        scope,
-    };
-    let e = p.expr(0, 0)?;
-    let t = p.next();
+    let mut p = Parser { lexer, cur, scope };
+    let e = p.expr(0)?;
+    let t = p.next()?;
     if t.tok != Tok::End {
         return Err(p.unexpected(&t, "an operator or the end of the equation"));
     }

@@ -6,7 +6,7 @@ use serde::Deserialize;
 
 use super::parser::Scope;
 use super::system::{newton_project, EquationSystem};
-use crate::error::{check_finite, Error, Result};
+use crate::error::{check_finite_in, Error, Result};
 use crate::triangulation::{check_dim, Offset, Triangulation, TriangulationKind};
 
 /// A spec file as written.
@@ -35,6 +35,49 @@ pub struct Spec {
     pub bbox: Option<Vec<[f64; 2]>>,
     /// Triangulation settings.
     pub triangulation: Option<TriangulationSpec>,
+    /// Where each equation's text starts in the spec file (1-based line and column), when it
+    /// is written without escapes; filled by [`Spec::from_toml`].
+    #[serde(skip)]
+    pub equation_at: Vec<Option<(usize, usize)>>,
+    /// The same for the boundary inequalities.
+    #[serde(skip)]
+    pub boundary_at: Vec<Option<(usize, usize)>>,
+}
+
+/// The string literals of `equations` and `boundary`, with their places in the file.
+#[derive(Deserialize)]
+struct Literals {
+    #[serde(default)]
+    equations: Vec<toml::Spanned<String>>,
+    #[serde(default)]
+    boundary: Vec<toml::Spanned<String>>,
+}
+
+/// Line and column in `text` where the value of the string literal `lit` starts, when its
+/// characters are the value's own (no escapes).
+fn content_start(text: &str, lit: &toml::Spanned<String>) -> Option<(usize, usize)> {
+    let span = lit.span();
+    let raw = text.get(span.clone())?;
+    let (open, close) = if raw.starts_with("\"\"\"") || raw.starts_with("'''") {
+        let skip = if raw[3..].starts_with("\r\n") {
+            5
+        } else if raw[3..].starts_with('\n') {
+            4
+        } else {
+            3
+        };
+        (skip, 3)
+    } else {
+        (1, 1)
+    };
+    let inner = raw.get(open..raw.len().checked_sub(close)?)?;
+    if inner != lit.get_ref() {
+        return None;
+    }
+    let before = &text[..span.start + open];
+    let line = before.matches('\n').count() + 1;
+    let column = before.rsplit('\n').next().map_or(0, |l| l.chars().count()) + 1;
+    Some((line, column))
 }
 
 /// `ambient_dim` of a spec that leaves it out: the count of `variables`.
@@ -166,7 +209,14 @@ pub fn check_box(bbox: &[[f64; 2]], d: usize) -> Result<()> {
 impl Spec {
     /// Parses TOML text.
     pub fn from_toml(text: &str) -> Result<Spec> {
-        toml::from_str(text).map_err(|e| Error::Spec(e.to_string()))
+        let mut spec: Spec = toml::from_str(text).map_err(|e| Error::Spec(e.to_string()))?;
+        if let Ok(lits) = toml::from_str::<Literals>(text) {
+            let at =
+                |l: &[toml::Spanned<String>]| l.iter().map(|s| content_start(text, s)).collect();
+            spec.equation_at = at(&lits.equations);
+            spec.boundary_at = at(&lits.boundary);
+        }
+        Ok(spec)
     }
 
     /// Reads and parses a spec file.
@@ -206,7 +256,23 @@ impl Spec {
         }
         let eqs: Vec<&str> = self.equations.iter().map(String::as_str).collect();
         let bnd: Vec<&str> = self.boundary.iter().map(String::as_str).collect();
-        let system = EquationSystem::parse(&scope, &eqs, &bnd)?;
+        let system = EquationSystem::parse_with(&scope, &eqs, &bnd, |mut e, what, i| {
+            let at = if what == "equation" {
+                &self.equation_at
+            } else {
+                &self.boundary_at
+            };
+            match at.get(i).copied().flatten() {
+                Some((line, column)) => {
+                    if e.line == 1 {
+                        e.column += column - 1;
+                    }
+                    e.line += line - 1;
+                    e.within(format!("{what} {} of the spec file", i + 1))
+                }
+                None => e.within(format!("{what} {}, counted within its text", i + 1)),
+            }
+        })?;
         if let Some(b) = &self.bbox {
             check_box(b, d)?;
         }
@@ -219,7 +285,7 @@ impl Spec {
                     s.len()
                 )));
             }
-            check_finite(s)?;
+            check_finite_in(s, &format!("seed {}", i + 1))?;
             seeds.push(newton_project(&system, s, 1e-12)?);
         }
         let triangulation = self.triangulation.clone().unwrap_or_default();

@@ -6,7 +6,7 @@ use std::sync::Arc;
 use super::ast::Expr;
 use super::parser::{check_counts, parse_expr_at, ParseError, Scope};
 use crate::cpu::program::{Program, Scratch};
-use crate::error::{check_finite, Error, Result};
+use crate::error::{check_finite_in, Error, Result};
 use crate::linalg::Lu;
 use crate::triangulation::{check_dim, random_rotation};
 
@@ -69,20 +69,33 @@ pub struct EquationSystem {
 }
 
 impl EquationSystem {
-    /// Parses `equations` (and `boundary` inequalities g >= 0) in `scope`; errors carry the
-    /// equation's number as their line.
+    /// Parses `equations` (and `boundary` inequalities g >= 0) in `scope`; an error's line and
+    /// column are within its text, and its context says "equation i" or "boundary inequality i".
     pub fn parse(scope: &Scope, equations: &[&str], boundary: &[&str]) -> Result<Self> {
-        let eqs = equations
-            .iter()
-            .enumerate()
-            .map(|(i, t)| parse_expr_at(t, scope, i + 1))
-            .collect::<Result<Vec<_>, ParseError>>()?;
-        check_counts(eqs.len(), scope.dim, equations.len().max(1))?;
-        let bnd = boundary
-            .iter()
-            .enumerate()
-            .map(|(i, t)| parse_expr_at(t, scope, i + 1))
-            .collect::<Result<Vec<_>, ParseError>>()?;
+        Self::parse_with(scope, equations, boundary, |e, what, i| {
+            e.within(format!("{what} {}", i + 1))
+        })
+    }
+
+    /// [`EquationSystem::parse`], with `relocate(error, what, i)` applied to an error in
+    /// text i, where `what` is "equation" or "boundary inequality" (a spec file moves the
+    /// position to its own lines and columns).
+    pub fn parse_with(
+        scope: &Scope,
+        equations: &[&str],
+        boundary: &[&str],
+        relocate: impl Fn(ParseError, &str, usize) -> ParseError,
+    ) -> Result<Self> {
+        let parse_all = |texts: &[&str], what: &str| {
+            texts
+                .iter()
+                .enumerate()
+                .map(|(i, t)| parse_expr_at(t, scope, 1).map_err(|e| relocate(e, what, i)))
+                .collect::<Result<Vec<_>, ParseError>>()
+        };
+        let eqs = parse_all(equations, "equation")?;
+        check_counts(eqs.len(), scope.dim, 1)?;
+        let bnd = parse_all(boundary, "boundary inequality")?;
         Self::from_exprs(default_names(scope), eqs, bnd)
     }
 
@@ -205,7 +218,7 @@ impl EquationSystem {
                 t.len()
             )));
         }
-        check_finite(t)?;
+        check_finite_in(t, "the translation")?;
         let subs: Vec<Expr> = (0..d)
             .map(|i| Expr::sub(Expr::Var(i), Expr::Num(t[i])))
             .collect();
@@ -336,7 +349,7 @@ pub fn newton_project(f: &dyn ImplicitFunction, x0: &[f64], tol: f64) -> Result<
             x0.len()
         )));
     }
-    check_finite(x0)?;
+    check_finite_in(x0, "the seed")?;
     let mut x = x0.to_vec();
     let mut fx = vec![0.0; k];
     let mut j = vec![0.0; k * d];
@@ -367,4 +380,70 @@ pub fn newton_project(f: &dyn ImplicitFunction, x0: &[f64], tol: f64) -> Result<
     Err(Error::Spec(format!(
         "Newton projection from {x0:?} did not converge to |f| <= {tol:e}: the seed is too far from the manifold or the Jacobian is singular there"
     )))
+}
+
+/// Whether the Jacobian of `f` is rank-deficient at `x`: some row, made orthogonal to the
+/// rows before it, is shorter than 1e-6 times the largest Jacobian row found at `x` and at
+/// the 2 d points `x` +- `h` e_i (a scale for f's own slope). Tracing from such a point (a
+/// crossing of branches, a cusp) follows one branch at most.
+pub fn is_singular_at(f: &dyn ImplicitFunction, x: &[f64], h: f64) -> bool {
+    let (d, k) = (f.ambient_dim(), f.codim());
+    let mut j = vec![0.0; k * d];
+    let row_norm = |j: &[f64]| {
+        j.chunks_exact(d)
+            .map(|r| r.iter().map(|v| v * v).sum::<f64>().sqrt())
+            .fold(0.0, f64::max)
+    };
+    let mut scale = 0.0f64;
+    let mut p = x.to_vec();
+    for c in 0..d {
+        for step in [h, -h] {
+            p[c] = x[c] + step;
+            f.jacobian(&p, &mut j);
+            scale = scale.max(row_norm(&j));
+        }
+        p[c] = x[c];
+    }
+    f.jacobian(x, &mut j);
+    scale = scale.max(row_norm(&j));
+    if !scale.is_finite() || j.iter().any(|v| !v.is_finite()) {
+        return true;
+    }
+    if scale == 0.0 {
+        return true;
+    }
+    // Modified Gram-Schmidt over the rows.
+    for r in 0..k {
+        for q in 0..r {
+            let (done, rest) = j.split_at_mut(r * d);
+            let (qrow, row) = (&done[q * d..(q + 1) * d], &mut rest[..d]);
+            let qq: f64 = qrow.iter().map(|v| v * v).sum();
+            if qq > 0.0 {
+                let t = qrow.iter().zip(row.iter()).map(|(a, b)| a * b).sum::<f64>() / qq;
+                row.iter_mut().zip(qrow).for_each(|(b, a)| *b -= t * a);
+            }
+        }
+        let norm = j[r * d..(r + 1) * d]
+            .iter()
+            .map(|v| v * v)
+            .sum::<f64>()
+            .sqrt();
+        if norm <= 1e-6 * scale {
+            return true;
+        }
+    }
+    false
+}
+
+/// The first equation (0-based) that is exactly 0 at every one of `points` (n rows of d),
+/// if any: f is then identically 0 there, and f^-1(0) is no manifold.
+pub fn zero_equation_at(f: &dyn ImplicitFunction, points: &[f64]) -> Option<usize> {
+    let (d, k) = (f.ambient_dim(), f.codim());
+    let n = points.len() / d.max(1);
+    if n == 0 {
+        return None;
+    }
+    let mut out = vec![0.0; n * k];
+    f.eval_batch(&points[..n * d], &mut out);
+    (0..k).find(|&i| out.chunks_exact(k).all(|v| v[i] == 0.0))
 }

@@ -8,7 +8,7 @@ use rayon::prelude::*;
 
 use super::level::{sort, Back, Found, Frontier};
 use super::table::{Key, Table};
-use super::{Progress, StopReason, TraceContext, TraceStats};
+use super::{Progress, StopReason, TraceContext, TraceStats, DEFAULT_EXTENT_STEPS};
 use crate::cpu::decide::Status;
 use crate::error::Result;
 
@@ -30,6 +30,9 @@ pub(crate) struct Engine<'a, const W: usize> {
     pub verts: Table<W>,
     pub values: Vec<f64>,
     pub stats: TraceStats,
+    /// Lattice base vertices of the seeds' first simplices (d each), to tell, with no box,
+    /// how far the trace has gone.
+    pub origins: Vec<i32>,
 }
 
 /// Oracle verdicts on a batch of candidates.
@@ -48,6 +51,7 @@ impl<'a, const W: usize> Engine<'a, W> {
             verts: Table::new(),
             values: Vec::new(),
             stats: TraceStats::default(),
+            origins: Vec::new(),
         }
     }
 
@@ -61,20 +65,54 @@ impl<'a, const W: usize> Engine<'a, W> {
     }
 
     /// Whether the trace must stop now (Ctrl-C, or the next step would pass the memory limit).
-    pub(super) fn must_stop(&mut self, next_bytes: usize) -> bool {
+    /// `next_bytes` is what the step holds on top of the heap in use now; the growth of the
+    /// tables by `new_keys` more simplices (and their vertices) is added to it.
+    pub(super) fn must_stop_growing(&mut self, next_bytes: usize, new_keys: usize) -> bool {
         if self.ctx.interrupted() {
             self.stats.stopped = Some(StopReason::Interrupted);
             return true;
         }
-        let need = (self.bytes() + next_bytes) as u64;
+        let n = self.ctx.k + 1;
+        let growth = self.s.growth_bytes(new_keys)
+            + self.verts.growth_bytes(new_keys * n)
+            + if (self.verts.len() + new_keys * n) * self.ctx.k > self.values.capacity() {
+                (self.values.capacity() * 2).max(new_keys * n * self.ctx.k) * 8
+            } else {
+                0
+            };
+        let need = crate::memory::in_use(self.bytes()) + (next_bytes + growth) as u64;
         if need > self.ctx.max_memory {
             self.stats.stopped = Some(StopReason::MemoryLimit {
                 needed: need,
                 limit: self.ctx.max_memory,
+                boxed: self.ctx.domain.bbox.is_some(),
             });
             return true;
         }
         false
+    }
+
+    /// [`Engine::must_stop_growing`] for a step that adds no key.
+    pub(super) fn must_stop(&mut self, next_bytes: usize) -> bool {
+        self.must_stop_growing(next_bytes, 0)
+    }
+
+    /// With no box: whether a simplex of `range` (in S) lies more than
+    /// [`DEFAULT_EXTENT_STEPS`] lattice steps from every seed.
+    fn beyond_extent(&self, range: Range<usize>) -> bool {
+        let d = self.ctx.d;
+        if self.ctx.domain.bbox.is_some() || self.origins.is_empty() {
+            return false;
+        }
+        let mut v = [0i32; crate::triangulation::MAX_DIM];
+        range.into_iter().any(|i| {
+            self.ctx.codec.decode_vertex(self.s.key(i), &mut v[..d]);
+            self.origins.chunks_exact(d).all(|o| {
+                o.iter().zip(&v[..d]).any(|(a, b)| {
+                    (i64::from(*a) - i64::from(*b)).unsigned_abs() > DEFAULT_EXTENT_STEPS as u64
+                })
+            })
+        })
     }
 
     /// Breadth-first trace from the simplices `frontier` (indices into S, already evaluated)
@@ -92,6 +130,13 @@ impl<'a, const W: usize> Engine<'a, W> {
                 return Ok(());
             };
             front = self.accept(found)?;
+            if self.beyond_extent(front.range.clone()) {
+                self.stats.stopped = Some(StopReason::NoBox {
+                    steps: DEFAULT_EXTENT_STEPS,
+                    distance: DEFAULT_EXTENT_STEPS as f64 * self.ctx.tri.edge(),
+                });
+                return Ok(());
+            }
             self.stats.levels += 1;
             self.stats.widest_level = self.stats.widest_level.max(front.range.len() as u64);
             if let Some(p) = self.ctx.progress {

@@ -442,7 +442,9 @@ impl<const W: usize> Engine<'_, W> {
                 .take()
                 .expect("each slice is named before it is decided")?;
             held += (named.cands.len() + 2 * named.deferred.len()) * per_cand;
-            if self.must_stop(held) {
+            // The level's new simplices: about as many as the frontier's (a manifold's levels
+            // grow slowly), twice that to be safe.
+            if self.must_stop_growing(held, 2 * len) {
                 return Ok(None);
             }
             self.name_deferred(frontier, &mut named)?;

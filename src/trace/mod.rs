@@ -104,7 +104,7 @@ pub struct Progress {
 }
 
 /// Why a trace stopped early (what it found is kept).
-#[derive(Clone, Debug, PartialEq, Eq, Serialize)]
+#[derive(Clone, Debug, PartialEq, Serialize)]
 #[serde(rename_all = "snake_case")]
 pub enum StopReason {
     /// The cancel flag was set.
@@ -115,19 +115,49 @@ pub enum StopReason {
         needed: u64,
         /// The limit.
         limit: u64,
+        /// Whether the trace had a box.
+        boxed: bool,
+    },
+    /// With no box, M reached [`DEFAULT_EXTENT_STEPS`] lattice steps from every seed: it may
+    /// be unbounded, and a box is needed to trace it.
+    NoBox {
+        /// The extent, in lattice steps.
+        steps: u32,
+        /// About that many units of length.
+        distance: f64,
     },
 }
+
+/// How far (in lattice steps, about one edge each, along any lattice axis) a trace with no
+/// box may go from its nearest seed: beyond that M is taken to be unbounded and the trace
+/// stops, asking for a box.
+pub const DEFAULT_EXTENT_STEPS: u32 = 1024;
 
 impl std::fmt::Display for StopReason {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         match self {
             StopReason::Interrupted => write!(f, "interrupted"),
-            StopReason::MemoryLimit { needed, limit } => write!(
+            StopReason::MemoryLimit {
+                needed,
+                limit,
+                boxed,
+            } => write!(
                 f,
-                "stopped before passing the memory limit: the next level needs {:.2} GiB, the \
-                 limit is {:.2} GiB (raise --max-memory, or use a larger edge or a smaller box)",
-                *needed as f64 / (1u64 << 30) as f64,
-                *limit as f64 / (1u64 << 30) as f64
+                "stopped before passing the memory limit: the next step needs {:.1} MiB, the \
+                 limit is {:.1} MiB (raise --max-memory, or use a larger edge or {})",
+                *needed as f64 / (1u64 << 20) as f64,
+                *limit as f64 / (1u64 << 20) as f64,
+                if *boxed {
+                    "a smaller box"
+                } else {
+                    "give a box: with none, M may be unbounded"
+                }
+            ),
+            StopReason::NoBox { steps, distance } => write!(
+                f,
+                "no box was given and M reaches {steps} lattice steps (about {distance:.3e}) from \
+                 its seeds: it may be unbounded; give a box (--box, or box = [...] in the spec) \
+                 to trace it"
             ),
         }
     }
@@ -448,7 +478,11 @@ macro_rules! with_width {
             9..=12 => $f::<12>($($arg),*),
             13..=16 => $f::<16>($($arg),*),
             17..=24 => $f::<24>($($arg),*),
-            w => Err(Error::Trace(format!("simplex keys of {w} words are not supported"))),
+            // d = 63 with no box: 63 coordinates of 20 bits and 63 part indices of 6 bits.
+            25..=32 => $f::<32>($($arg),*),
+            w => Err(Error::Trace(format!(
+                "simplex keys of {w} words are not supported (at most 32): give a smaller box"
+            ))),
         }
     };
 }

@@ -38,6 +38,9 @@ impl<const W: usize> Engine<'_, W> {
     pub fn trace_from_point(&mut self, x: &[f64]) -> Result<usize> {
         let (d, k) = (self.ctx.d, self.ctx.k);
         let first = full_coface(&self.ctx.tri.locate(x)?);
+        if self.ctx.domain.bbox.is_none() {
+            self.origins.extend_from_slice(first.base());
+        }
         let mut seen: HashSet<Simplex, FixedState> = HashSet::with_hasher(FixedState::default());
         seen.insert(first.clone());
         let mut ring = vec![first];
@@ -104,7 +107,9 @@ impl<const W: usize> Engine<'_, W> {
     }
 
     /// Traces every component met by Newton projections of `samples` random points of the
-    /// box (seeded, so the same each run).
+    /// box (seeded, so the same each run). The points are drawn, projected and traced from
+    /// in batches, so that memory does not grow with `samples`; before each batch the trace
+    /// stops if the batch would pass the memory limit, or on Ctrl-C.
     pub fn trace_from_box(
         &mut self,
         f: &dyn ImplicitFunction,
@@ -113,30 +118,56 @@ impl<const W: usize> Engine<'_, W> {
         seed: u64,
     ) -> Result<()> {
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
-        let starts: Vec<Vec<f64>> = (0..samples)
-            .map(|_| {
-                bbox.iter()
-                    .map(|[lo, hi]| rng.random_range(*lo..=*hi))
-                    .collect()
-            })
-            .collect();
-        let projected: Vec<Vec<f64>> = starts
-            .par_iter()
-            .filter_map(|x| newton_project(f, x, SEED_TOLERANCE).ok())
-            .filter(|p| self.ctx.domain.contains(p))
-            .collect();
-        self.stats.seed_points += projected.len() as u64;
-        for p in projected {
-            if self.stats.stopped.is_some() {
+        let d = bbox.len();
+        let mut left = samples;
+        while left > 0 && self.stats.stopped.is_none() {
+            let batch = left.min(SEARCH_BATCH);
+            left -= batch;
+            // The batch's points, twice over (drawn and projected), and Newton's work.
+            let batch_bytes = batch * 2 * (d * 8 + 3 * size_of::<usize>());
+            if self.must_stop(batch_bytes) {
                 break;
             }
-            // A projected point whose neighbourhood has no crossing (M clipped by the box,
-            // or a feature below the resolution) starts nothing.
-            match self.trace_from_point(&p) {
-                Ok(_) | Err(Error::Trace(_)) => {}
-                Err(e) => return Err(e),
+            let starts: Vec<Vec<f64>> = (0..batch)
+                .map(|_| {
+                    bbox.iter()
+                        .map(|[lo, hi]| rng.random_range(*lo..=*hi))
+                        .collect()
+                })
+                .collect();
+            let projected: Vec<Vec<f64>> = starts
+                .par_iter()
+                .filter_map(|x| newton_project(f, x, SEED_TOLERANCE).ok())
+                .filter(|p| self.ctx.domain.contains(p))
+                .collect();
+            // Box points where f is NaN or infinite count as non-finite: f may be so
+            // everywhere, and that must show.
+            let k = f.codim();
+            self.stats.non_finite += starts
+                .par_iter()
+                .filter(|x| {
+                    let mut v = vec![0.0; k];
+                    f.eval_batch(x, &mut v);
+                    v.iter().any(|v| !v.is_finite())
+                })
+                .count() as u64;
+            drop(starts);
+            self.stats.seed_points += projected.len() as u64;
+            for p in projected {
+                if self.stats.stopped.is_some() {
+                    break;
+                }
+                // A projected point whose neighbourhood has no crossing (M clipped by the box,
+                // or a feature below the resolution) starts nothing.
+                match self.trace_from_point(&p) {
+                    Ok(_) | Err(Error::Trace(_)) => {}
+                    Err(e) => return Err(e),
+                }
             }
         }
         Ok(())
     }
 }
+
+/// Box points drawn and projected at once by the seed search.
+const SEARCH_BATCH: usize = 1 << 16;

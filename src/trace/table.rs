@@ -77,6 +77,24 @@ impl<const W: usize> Table<W> {
         Ok(i)
     }
 
+    /// Bytes that inserting `extra` more keys may allocate on top of [`Table::bytes`] (the
+    /// arena and the index grow by doubling, the old index live while the new one fills).
+    pub fn growth_bytes(&self, extra: usize) -> usize {
+        let len = self.len() + extra;
+        let mut grow = 0;
+        if len * W > self.words.capacity() {
+            grow += (len * W).max(2 * self.words.capacity()) * 8;
+        }
+        if len > self.index.capacity() {
+            let ratio = len
+                .div_ceil(self.index.capacity().max(1))
+                .next_power_of_two();
+            // A bucket: its u32 and a control byte, at 7/8 load.
+            grow += (self.index.allocation_size().max(len * 5 * 8 / 7)) * ratio.max(2);
+        }
+        grow
+    }
+
     /// Bytes held (arena and table).
     pub fn bytes(&self) -> usize {
         self.words.capacity() * 8 + self.index.allocation_size()

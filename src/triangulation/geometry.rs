@@ -7,7 +7,7 @@ use rand_chacha::ChaCha8Rng;
 use rand_distr::StandardNormal;
 
 use super::simplex::{check_dim, Simplex};
-use crate::error::{check_finite, Error, Result};
+use crate::error::{check_finite, check_finite_in, Error, Result};
 use crate::linalg::{mat_mul, mat_vec, Lu};
 
 /// Which triangulation of R^d.
@@ -224,7 +224,7 @@ impl TriangulationBuilder {
                     )));
                 }
                 let flat: Vec<f64> = m.iter().flatten().copied().collect();
-                check_finite(&flat)?;
+                check_finite_in(&flat, "the custom matrix (row by row)")?;
                 Some(flat)
             }
             None => None,
@@ -274,7 +274,7 @@ impl TriangulationBuilder {
                         b.len()
                     )));
                 }
-                check_finite(&b)?;
+                check_finite_in(&b, "the offset")?;
                 b
             }
             Offset::Seeded(seed) => {

@@ -498,7 +498,7 @@ impl Simplex {
     pub fn locate_lattice(u: &[f64], eps: f64) -> Result<Self> {
         let d = u.len();
         check_dim(d)?;
-        crate::error::check_finite(u)?;
+        crate::error::check_finite_in(u, "the lattice point")?;
         let mut s = Self::blank(d, 0);
         let mut z = [(0.0f64, 0u8); MAX_PARTS];
         for (i, &x) in u.iter().enumerate() {
