@@ -35,6 +35,12 @@ pub trait ImplicitFunction: Send + Sync {
             }
         }
     }
+    /// Whether calls of [`eval_batch`](Self::eval_batch) run one at a time whatever the
+    /// thread (f behind a lock, such as a Python function under the GIL): the CPU oracle then
+    /// gives it each batch whole instead of in parallel chunks.
+    fn serial(&self) -> bool {
+        false
+    }
     /// The equations as text-derived trees, when f has them (needed by the GPU backend).
     fn system(&self) -> Option<&EquationSystem> {
         None

@@ -17,6 +17,8 @@ use crate::triangulation::Triangulation;
 const CHUNK: usize = 2048;
 /// Fewest vertices or simplices per chunk.
 const MIN_CHUNK: usize = 64;
+/// Most vertices per call of an f whose calls are serial ([`ImplicitFunction::serial`]).
+const SERIAL_BATCH: usize = 1 << 16;
 
 /// Items per parallel chunk for `len` items: about four chunks per thread, within
 /// `MIN_CHUNK..=CHUNK`.
@@ -85,6 +87,24 @@ impl Oracle for CpuOracle<'_> {
         values: &mut [f64],
     ) -> Result<()> {
         let (d, k) = (tri.dim(), self.f.codim());
+        if self.f.serial() {
+            // One call per SERIAL_BATCH vertices, the coordinates computed in parallel.
+            let mut x = vec![0.0; lattice.len()];
+            x.par_chunks_mut(CHUNK * d)
+                .zip(lattice.par_chunks(CHUNK * d))
+                .for_each(|(p, lat)| {
+                    for (v, p) in lat.chunks_exact(d).zip(p.chunks_exact_mut(d)) {
+                        tri.vertex_coords(v, p);
+                    }
+                });
+            for (p, out) in x
+                .chunks(SERIAL_BATCH * d)
+                .zip(values.chunks_mut(SERIAL_BATCH * k))
+            {
+                self.f.eval_batch(p, out);
+            }
+            return Ok(());
+        }
         let chunk = chunk_for(lattice.len() / d);
         lattice
             .par_chunks(chunk * d)

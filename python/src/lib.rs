@@ -1,0 +1,55 @@
+//! The native module `isomesh._isomesh`: problems, traces and scans, samples and complexes as
+//! NumPy arrays. The Python package `isomesh` re-exports it.
+
+mod callable;
+mod problem;
+mod result;
+
+use pyo3::exceptions::{PyOSError, PyRuntimeError, PyValueError};
+use pyo3::prelude::*;
+use pyo3::types::PyDict;
+
+/// An isomesh error as the Python exception a caller expects, with the CLI's message.
+pub(crate) fn to_py(e: isomesh::Error) -> PyErr {
+    use isomesh::Error as E;
+    match e {
+        E::Io(m) => PyOSError::new_err(m),
+        e @ (E::Gpu(_) | E::Wgsl(_)) => PyRuntimeError::new_err(e.to_string()),
+        e => PyValueError::new_err(e.to_string()),
+    }
+}
+
+/// Parses a JSON text into Python objects.
+pub(crate) fn json_to_py<'py>(
+    py: Python<'py>,
+    v: &serde_json::Value,
+) -> PyResult<Bound<'py, PyAny>> {
+    py.import("json")?.call_method1("loads", (v.to_string(),))
+}
+
+/// The built-in manifolds: name -> {"about": str, "params": {name: default}}.
+#[pyfunction]
+fn presets(py: Python<'_>) -> PyResult<Bound<'_, PyDict>> {
+    let out = PyDict::new(py);
+    for p in isomesh::expr::PRESETS {
+        let info = PyDict::new(py);
+        info.set_item("about", p.about)?;
+        let params = PyDict::new(py);
+        for (n, v) in p.params {
+            params.set_item(*n, *v)?;
+        }
+        info.set_item("params", params)?;
+        out.set_item(p.name, info)?;
+    }
+    Ok(out)
+}
+
+#[pymodule]
+fn _isomesh(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_class::<problem::Problem>()?;
+    m.add_class::<result::Sample>()?;
+    m.add_class::<result::Complex>()?;
+    m.add_function(wrap_pyfunction!(presets, m)?)?;
+    m.add("__version__", env!("CARGO_PKG_VERSION"))?;
+    Ok(())
+}

@@ -1,0 +1,581 @@
+//! `isomesh.Problem`: f (equations, a preset, a spec file or a Python callable) with its seeds,
+//! box and triangulation; `trace()` and `scan()` run it with the GIL released.
+
+use std::collections::BTreeMap;
+use std::panic::{catch_unwind, AssertUnwindSafe};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::mpsc::{self, RecvTimeoutError};
+use std::sync::{Arc, Mutex};
+use std::time::Duration;
+
+use isomesh::expr::{preset_spec, Spec, TriangulationSpec};
+use isomesh::gpu::Precision;
+use isomesh::{Backend, Error, Manifold, Mesher};
+use pyo3::exceptions::{PyRuntimeWarning, PyTypeError, PyValueError};
+use pyo3::prelude::*;
+use pyo3::types::{PyDict, PyString};
+
+use crate::callable::PyFunction;
+use crate::result::Sample;
+use crate::to_py;
+
+/// How often the calling thread looks for Ctrl-C while a run works.
+const POLL: Duration = Duration::from_millis(50);
+
+/// An implicit manifold f^-1(0) to mesh: f, seeds near it, a box, a triangulation.
+///
+/// Problem(equations, *, ambient_dim=None, variables=None, parameters=None, boundary=None,
+///         seeds=None, box=None, edge=None, triangulation=None, offset_seed=None,
+///         rotation_seed=None, rotate=None, name=None)
+/// Problem(function=f, ambient_dim=d, codim=k, ...): f maps an (n, d) float64 array to an
+/// (n, k) array (CPU backend only).
+#[pyclass(module = "isomesh", frozen)]
+pub struct Problem {
+    mesher: Mesher,
+    name: String,
+    seeds: Vec<Vec<f64>>,
+    bbox: Option<Vec<[f64; 2]>>,
+    equations: Option<Vec<String>>,
+    callable: Option<Arc<PyFunction>>,
+    stop: Arc<AtomicBool>,
+}
+
+/// Triangulation settings given as keywords.
+struct TriKeywords {
+    edge: Option<f64>,
+    kind: Option<String>,
+    offset_seed: Option<u64>,
+    rotation_seed: Option<u64>,
+    rotate: Option<bool>,
+}
+
+impl TriKeywords {
+    fn apply_to(&self, mut m: Mesher) -> PyResult<Mesher> {
+        if let Some(e) = self.edge {
+            m = m.edge(e);
+        }
+        if let Some(k) = &self.kind {
+            m = m.triangulation(k.parse().map_err(to_py)?);
+        }
+        if let Some(s) = self.offset_seed {
+            m = m.offset_seed(s);
+        }
+        match (self.rotate, self.rotation_seed) {
+            (Some(false), Some(_)) => Err(PyValueError::new_err(
+                "rotate=False and a rotation_seed: give one or the other",
+            )),
+            (Some(false), None) => Ok(m.rotation_seed(None)),
+            (_, Some(s)) => Ok(m.rotation_seed(Some(s))),
+            (_, None) => Ok(m),
+        }
+    }
+
+    fn apply(&self, t: &mut TriangulationSpec) -> PyResult<()> {
+        if let Some(e) = self.edge {
+            t.edge = Some(e);
+        }
+        if let Some(k) = &self.kind {
+            t.kind = Some(k.clone());
+        }
+        if let Some(s) = self.offset_seed {
+            t.offset_seed = Some(s);
+            t.offset = None;
+        }
+        match (self.rotate, self.rotation_seed) {
+            (Some(false), Some(_)) => {
+                return Err(PyValueError::new_err(
+                    "rotate=False and a rotation_seed: give one or the other",
+                ))
+            }
+            (Some(false), None) => {
+                t.rotate = Some(false);
+                t.rotation_seed = None;
+            }
+            (_, Some(s)) => {
+                t.rotate = Some(true);
+                t.rotation_seed = Some(s);
+            }
+            (Some(true), None) => t.rotate = Some(true),
+            (None, None) => {}
+        }
+        Ok(())
+    }
+}
+
+fn check_seeds(seeds: &[Vec<f64>], d: usize) -> PyResult<()> {
+    for (i, s) in seeds.iter().enumerate() {
+        if s.len() != d {
+            return Err(PyValueError::new_err(format!(
+                "seed {} has {} coordinates, the ambient dimension is {d}",
+                i + 1,
+                s.len()
+            )));
+        }
+        if s.iter().any(|v| !v.is_finite()) {
+            return Err(PyValueError::new_err(format!(
+                "seed {} {s:?} has a non-finite coordinate",
+                i + 1
+            )));
+        }
+    }
+    Ok(())
+}
+
+fn check_box(bbox: &[[f64; 2]], d: usize) -> PyResult<()> {
+    isomesh::expr::spec::check_box(bbox, d).map_err(to_py)
+}
+
+impl Problem {
+    fn from_problem(p: isomesh::expr::Problem, equations: Vec<String>) -> Self {
+        Problem {
+            name: p.name.clone(),
+            seeds: p.seeds.clone(),
+            bbox: p.bbox.clone(),
+            mesher: Mesher::from_problem(p),
+            equations: Some(equations),
+            callable: None,
+            stop: Arc::new(AtomicBool::new(false)),
+        }
+    }
+
+    /// The mesher of one run: this problem's, with the run's seeds, box and settings.
+    #[allow(clippy::too_many_arguments)]
+    fn mesher(
+        &self,
+        seeds: Option<Vec<Vec<f64>>>,
+        bbox: Option<Vec<[f64; 2]>>,
+        backend: &str,
+        threads: Option<usize>,
+        precision: Option<&str>,
+        max_memory: Option<u64>,
+    ) -> PyResult<Mesher> {
+        let d = self.mesher.ambient_dim();
+        let mut m = self.mesher.clone();
+        if let Some(seeds) = seeds {
+            check_seeds(&seeds, d)?;
+            m = m.seeds(seeds);
+        }
+        if let Some(b) = bbox {
+            check_box(&b, d)?;
+            m = m.bbox(b);
+        }
+        let precision = match precision.map(str::to_ascii_lowercase).as_deref() {
+            None | Some("auto") => None,
+            Some("f32") => Some(Precision::F32),
+            Some("f64") => Some(Precision::F64),
+            Some(p) => {
+                return Err(PyValueError::new_err(format!(
+                    "precision '{p}': use \"f32\", \"f64\" or \"auto\""
+                )))
+            }
+        };
+        if let Some(t) = threads {
+            m = m.threads(t);
+        }
+        if let Some(bytes) = max_memory {
+            if bytes == 0 {
+                return Err(PyValueError::new_err("max_memory must be positive"));
+            }
+            m = m.max_memory(bytes);
+        }
+        // Like the CLI, the pool's threads poll for work while a trace runs, except for a
+        // Python function, whose calls wait for the GIL.
+        Ok(m.warm(self.callable.is_none())
+            .backend(backend.parse::<Backend>().map_err(to_py)?)
+            .precision(precision)
+            .cancel(self.stop.clone()))
+    }
+
+    /// Runs `mesher` in a worker thread; this thread waits with the GIL released, looking for
+    /// Ctrl-C, and re-raises what the callable raised.
+    fn run(&self, py: Python<'_>, mesher: Mesher, exhaustive: bool) -> PyResult<Sample> {
+        self.stop.store(false, Ordering::Relaxed);
+        if let Some(c) = &self.callable {
+            c.reset();
+        }
+        let (tx, rx) = mpsc::channel();
+        let rx = Mutex::new(rx);
+        let mut interrupt: Option<PyErr> = None;
+        let outcome = std::thread::scope(|s| {
+            s.spawn(move || {
+                let r = catch_unwind(AssertUnwindSafe(|| {
+                    if exhaustive {
+                        mesher.scan()
+                    } else {
+                        mesher.trace()
+                    }
+                }));
+                let _ = tx.send(r.unwrap_or_else(|p| Err(Error::Trace(panic_message(&p)))));
+            });
+            loop {
+                match py.detach(|| {
+                    rx.lock()
+                        .unwrap_or_else(|e| e.into_inner())
+                        .recv_timeout(POLL)
+                }) {
+                    Ok(r) => break r,
+                    Err(RecvTimeoutError::Timeout) => {
+                        if interrupt.is_none() {
+                            if let Err(e) = py.check_signals() {
+                                self.stop.store(true, Ordering::Relaxed);
+                                interrupt = Some(e);
+                            }
+                        }
+                    }
+                    Err(RecvTimeoutError::Disconnected) => {
+                        break Err(Error::Trace(
+                            "the worker thread ended without a result".into(),
+                        ))
+                    }
+                }
+            }
+        });
+        if let Some(e) = interrupt {
+            return Err(e);
+        }
+        if let Some(e) = self.callable.as_ref().and_then(|c| c.take_error()) {
+            return Err(e);
+        }
+        let manifold: Manifold = outcome.map_err(to_py)?;
+        let calls = self.callable.as_ref().map(|c| c.stats());
+        if !manifold.complete() {
+            let msg = format!(
+                "{}; the {} simplices found so far are returned with complete = False",
+                manifold.report().stopped.unwrap_or_default(),
+                manifold.len()
+            );
+            PyErr::warn(
+                py,
+                &py.get_type::<PyRuntimeWarning>(),
+                &std::ffi::CString::new(msg).unwrap_or_default(),
+                1,
+            )?;
+        }
+        Ok(Sample::new(
+            manifold,
+            self.name.clone(),
+            self.callable.clone(),
+            calls,
+        ))
+    }
+}
+
+fn panic_message(p: &Box<dyn std::any::Any + Send>) -> String {
+    let what = p
+        .downcast_ref::<&str>()
+        .map(|s| s.to_string())
+        .or_else(|| p.downcast_ref::<String>().cloned())
+        .unwrap_or_else(|| "unknown".into());
+    format!("internal error (please report): {what}")
+}
+
+#[pymethods]
+impl Problem {
+    #[new]
+    #[pyo3(signature = (equations=None, *, function=None, ambient_dim=None, codim=None,
+        variables=None, parameters=None, boundary=None, seeds=None, r#box=None, edge=None,
+        triangulation=None, offset_seed=None, rotation_seed=None, rotate=None, name=None))]
+    #[allow(clippy::too_many_arguments)]
+    fn new(
+        equations: Option<Bound<'_, PyAny>>,
+        function: Option<Bound<'_, PyAny>>,
+        ambient_dim: Option<usize>,
+        codim: Option<usize>,
+        variables: Option<Vec<String>>,
+        parameters: Option<BTreeMap<String, f64>>,
+        boundary: Option<Vec<String>>,
+        seeds: Option<Vec<Vec<f64>>>,
+        r#box: Option<Vec<[f64; 2]>>,
+        edge: Option<f64>,
+        triangulation: Option<String>,
+        offset_seed: Option<u64>,
+        rotation_seed: Option<u64>,
+        rotate: Option<bool>,
+        name: Option<String>,
+    ) -> PyResult<Self> {
+        let tri = TriKeywords {
+            edge,
+            kind: triangulation,
+            offset_seed,
+            rotation_seed,
+            rotate,
+        };
+        let seeds = seeds.unwrap_or_default();
+        match (equations, function) {
+            (Some(_), Some(_)) => Err(PyValueError::new_err(
+                "give equations or function=, not both",
+            )),
+            (None, None) => Err(PyValueError::new_err(
+                "give equations (a string or a list of strings) or function=",
+            )),
+            (Some(eqs), None) => {
+                let equations: Vec<String> = if let Ok(s) = eqs.cast::<PyString>() {
+                    vec![s.to_string()]
+                } else {
+                    eqs.extract().map_err(|_| {
+                        PyTypeError::new_err("equations must be a string or a list of strings")
+                    })?
+                };
+                if codim.is_some_and(|k| k != equations.len()) {
+                    return Err(PyValueError::new_err(format!(
+                        "codim={} but {} equations are given",
+                        codim.unwrap_or(0),
+                        equations.len()
+                    )));
+                }
+                let d = ambient_dim
+                    .or(variables.as_ref().map(Vec::len))
+                    .or(seeds.first().map(Vec::len))
+                    .or(r#box.as_ref().map(Vec::len))
+                    .ok_or_else(|| {
+                        PyValueError::new_err(
+                            "the ambient dimension is unknown: give ambient_dim, variables, \
+                             seeds or box",
+                        )
+                    })?;
+                check_seeds(&seeds, d)?;
+                let mut t = TriangulationSpec::default();
+                tri.apply(&mut t)?;
+                let spec = Spec {
+                    ambient_dim: d,
+                    variables,
+                    parameters: parameters.unwrap_or_default(),
+                    equations: equations.clone(),
+                    boundary: boundary.unwrap_or_default(),
+                    seeds,
+                    bbox: r#box,
+                    triangulation: Some(t),
+                    ..Spec::default()
+                };
+                let p = spec
+                    .resolve(name.as_deref().unwrap_or("problem"))
+                    .map_err(to_py)?;
+                Ok(Problem::from_problem(p, equations))
+            }
+            (None, Some(f)) => {
+                if !f.is_callable() {
+                    return Err(PyTypeError::new_err("function must be callable"));
+                }
+                if variables.is_some() || parameters.is_some() || boundary.is_some() {
+                    return Err(PyValueError::new_err(
+                        "variables, parameters and boundary go with equations, not function=",
+                    ));
+                }
+                let (d, k) = match (ambient_dim, codim) {
+                    (Some(d), Some(k)) => (d, k),
+                    _ => {
+                        return Err(PyValueError::new_err(
+                            "function= needs ambient_dim (d) and codim (k): f maps an (n, d) \
+                             array to an (n, k) array",
+                        ))
+                    }
+                };
+                if d == 0 || d > isomesh::triangulation::MAX_DIM {
+                    return Err(to_py(Error::Dimension(d)));
+                }
+                if k == 0 || k >= d {
+                    return Err(PyValueError::new_err(format!(
+                        "codim must be from 1 to ambient_dim - 1 = {}, not {k}",
+                        d.saturating_sub(1)
+                    )));
+                }
+                check_seeds(&seeds, d)?;
+                if let Some(b) = &r#box {
+                    check_box(b, d)?;
+                }
+                let stop = Arc::new(AtomicBool::new(false));
+                let callable = Arc::new(PyFunction::new(f.unbind(), d, k, stop.clone()));
+                let name = name.unwrap_or_else(|| "function".into());
+                let mut m = tri
+                    .apply_to(Mesher::from_function(callable.clone()))?
+                    .name(&name)
+                    .seeds(seeds.clone());
+                if let Some(b) = &r#box {
+                    m = m.bbox(b.clone());
+                }
+                m.build_triangulation().map_err(to_py)?;
+                Ok(Problem {
+                    mesher: m,
+                    name,
+                    seeds,
+                    bbox: r#box,
+                    equations: None,
+                    callable: Some(callable),
+                    stop,
+                })
+            }
+        }
+    }
+
+    /// A built-in manifold (see `isomesh.presets()`); keywords other than the settings are
+    /// the preset's parameters, e.g. `Problem.preset("torus", R=1.0, r=0.4, edge=0.05)`.
+    #[staticmethod]
+    #[pyo3(signature = (name, *, seeds=None, r#box=None, triangulation=None, offset_seed=None,
+        rotation_seed=None, rotate=None, **params))]
+    #[allow(clippy::too_many_arguments)]
+    fn preset(
+        name: &str,
+        seeds: Option<Vec<Vec<f64>>>,
+        r#box: Option<Vec<[f64; 2]>>,
+        triangulation: Option<String>,
+        offset_seed: Option<u64>,
+        rotation_seed: Option<u64>,
+        rotate: Option<bool>,
+        params: Option<&Bound<'_, PyDict>>,
+    ) -> PyResult<Self> {
+        let mut overrides = Vec::new();
+        if let Some(p) = params {
+            for (k, v) in p.iter() {
+                let k: String = k.extract()?;
+                let v: f64 = v.extract().map_err(|_| {
+                    PyTypeError::new_err(format!("preset parameter {k} must be a number"))
+                })?;
+                overrides.push((k, v));
+            }
+        }
+        let mut spec = preset_spec(name, &overrides).map_err(to_py)?;
+        let d = spec.ambient_dim;
+        if let Some(s) = seeds {
+            check_seeds(&s, d)?;
+            spec.seeds = s;
+        }
+        if let Some(b) = r#box {
+            check_box(&b, d)?;
+            spec.bbox = Some(b);
+        }
+        let mut t = spec.triangulation.clone().unwrap_or_default();
+        TriKeywords {
+            edge: None,
+            kind: triangulation,
+            offset_seed,
+            rotation_seed,
+            rotate,
+        }
+        .apply(&mut t)?;
+        spec.triangulation = Some(t);
+        let equations = spec.equations.clone();
+        let p = spec.resolve(name).map_err(to_py)?;
+        Ok(Problem::from_problem(p, equations))
+    }
+
+    /// A spec file in the CLI's TOML format (a path), or its text.
+    #[staticmethod]
+    #[pyo3(signature = (source, name=None))]
+    fn from_toml(source: &Bound<'_, PyAny>, name: Option<String>) -> PyResult<Self> {
+        let text: Option<String> = source
+            .cast::<PyString>()
+            .ok()
+            .map(|s| s.to_string())
+            .filter(|s| s.contains('\n') || s.contains('='));
+        let (spec, stem) = match text {
+            Some(t) => (Spec::from_toml(&t).map_err(to_py)?, "spec".to_string()),
+            None => {
+                let path: std::path::PathBuf = source.extract()?;
+                let stem = path
+                    .file_stem()
+                    .map(|s| s.to_string_lossy().into_owned())
+                    .unwrap_or_default();
+                (Spec::from_file(&path).map_err(to_py)?, stem)
+            }
+        };
+        let equations = spec.equations.clone();
+        let p = spec.resolve(&name.unwrap_or(stem)).map_err(to_py)?;
+        Ok(Problem::from_problem(p, equations))
+    }
+
+    /// Traces M from the seeds (or from points found in the box) on the given backend
+    /// ("cpu", "gpu" or "auto"); `threads=None` uses every core.
+    #[pyo3(signature = (*, backend="cpu", threads=None, seeds=None, r#box=None, search=None,
+        search_seed=1, precision=None, max_memory=None))]
+    #[allow(clippy::too_many_arguments)]
+    fn trace(
+        &self,
+        py: Python<'_>,
+        backend: &str,
+        threads: Option<usize>,
+        seeds: Option<Vec<Vec<f64>>>,
+        r#box: Option<Vec<[f64; 2]>>,
+        search: Option<usize>,
+        search_seed: u64,
+        precision: Option<&str>,
+        max_memory: Option<u64>,
+    ) -> PyResult<Sample> {
+        let mut m = self.mesher(seeds, r#box, backend, threads, precision, max_memory)?;
+        if let Some(n) = search {
+            m = m.search(n);
+        }
+        self.run(py, m.search_seed(search_seed), false)
+    }
+
+    /// Scans every k-simplex of the triangulation in the box (the problem's, or `box`).
+    #[pyo3(signature = (r#box=None, *, backend="cpu", threads=None, precision=None,
+        max_memory=None))]
+    fn scan(
+        &self,
+        py: Python<'_>,
+        r#box: Option<Vec<[f64; 2]>>,
+        backend: &str,
+        threads: Option<usize>,
+        precision: Option<&str>,
+        max_memory: Option<u64>,
+    ) -> PyResult<Sample> {
+        let m = self.mesher(None, r#box, backend, threads, precision, max_memory)?;
+        self.run(py, m, true)
+    }
+
+    /// The problem's name.
+    #[getter]
+    fn name(&self) -> &str {
+        &self.name
+    }
+
+    /// d, the dimension of the ambient space.
+    #[getter]
+    fn ambient_dim(&self) -> usize {
+        self.mesher.ambient_dim()
+    }
+
+    /// k, the number of equations.
+    #[getter]
+    fn codim(&self) -> usize {
+        self.mesher.codim()
+    }
+
+    /// The equations as given (None for a Python function).
+    #[getter]
+    fn equations(&self) -> Option<Vec<String>> {
+        self.equations.clone()
+    }
+
+    /// The seeds (Newton-projected for equations).
+    #[getter]
+    fn seeds(&self) -> Vec<Vec<f64>> {
+        self.seeds.clone()
+    }
+
+    /// The box, [[lo, hi], ...] per axis, or None.
+    #[getter(r#box)]
+    fn bbox(&self) -> Option<Vec<[f64; 2]>> {
+        self.bbox.clone()
+    }
+
+    /// The longest edge of a d-simplex of the triangulation.
+    #[getter]
+    fn edge(&self) -> PyResult<f64> {
+        Ok(self.mesher.build_triangulation().map_err(to_py)?.edge())
+    }
+
+    fn __repr__(&self) -> String {
+        let f = self.mesher.function();
+        format!(
+            "Problem('{}', f: R^{} -> R^{}, {})",
+            self.name,
+            f.ambient_dim(),
+            f.codim(),
+            match &self.equations {
+                Some(e) => format!("{e:?}"),
+                None => "a Python function".into(),
+            }
+        )
+    }
+}

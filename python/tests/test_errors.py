@@ -1,0 +1,97 @@
+"""Bad input: Python exceptions with clear messages, never a crash."""
+
+import numpy as np
+import pytest
+
+import isomesh
+
+
+def test_malformed_equation_names_line_and_column():
+    with pytest.raises(ValueError, match=r"line 1, column \d+"):
+        isomesh.Problem(["x^2 + * y"], ambient_dim=3)
+    with pytest.raises(ValueError, match=r"line \d+, column \d+ \(equation 2"):
+        isomesh.Problem(["x^2 + y^2 + z^2 - 1", "x + (y"], ambient_dim=3)
+
+
+def test_unknown_preset_and_parameter():
+    with pytest.raises(ValueError, match="unknown preset 'doughnut'"):
+        isomesh.Problem.preset("doughnut")
+    with pytest.raises(ValueError):
+        isomesh.Problem.preset("torus", Q=2.0)
+
+
+def test_no_seed_and_no_box():
+    p = isomesh.Problem(["x^2 + y^2 + z^2 - 1"], ambient_dim=3)
+    with pytest.raises(ValueError, match="no seed and no box"):
+        p.trace()
+    with pytest.raises(ValueError, match="needs a box"):
+        p.scan()
+
+
+def test_bad_arguments():
+    with pytest.raises(ValueError, match="ambient dimension is unknown"):
+        isomesh.Problem(["x1^2 - 1"])
+    with pytest.raises(ValueError, match="seed 1 has 2 coordinates"):
+        isomesh.Problem(["x^2 + y^2 + z^2 - 1"], seeds=[[1, 0]], ambient_dim=3)
+    with pytest.raises(ValueError, match="backend 'tpu'"):
+        isomesh.Problem.preset("circle").trace(backend="tpu")
+    with pytest.raises(ValueError, match="needs ambient_dim"):
+        isomesh.Problem(function=lambda x: x[:, :1])
+    with pytest.raises(TypeError, match="callable"):
+        isomesh.Problem(function=3, ambient_dim=3, codim=1)
+    with pytest.raises(OSError, match="nowhere.toml"):
+        isomesh.Problem.from_toml("/nowhere.toml")
+
+
+def problem(f, **kw):
+    return isomesh.Problem(function=f, ambient_dim=3, codim=1, seeds=[[1, 0, 0]], edge=0.2, **kw)
+
+
+def test_wrong_output_shape():
+    with pytest.raises(ValueError, match=r"shape \(\d+, 2\).*expected \(\d+, 1\)"):
+        problem(lambda x: np.zeros((len(x), 2))).trace()
+    with pytest.raises(ValueError, match=r"shape \(3,\)"):
+        problem(lambda x: np.zeros(3)).trace()
+
+
+def test_output_that_is_no_array():
+    with pytest.raises(ValueError, match="array of floats"):
+        problem(lambda x: ["a"] * len(x)).trace()
+
+
+def test_nan_from_the_function():
+    def f(x):
+        out = x[:, 0] ** 2 + x[:, 1] ** 2 + x[:, 2] ** 2 - 1.0
+        out[x[:, 2] > 0.5] = np.nan
+        return out
+
+    with pytest.raises(ValueError, match="NaN at the point"):
+        problem(f).trace()
+
+
+class Boom(Exception):
+    pass
+
+
+def test_exception_propagates_with_its_traceback():
+    def f(x):
+        if len(x) > 100:
+            raise Boom("no more")
+        return x[:, 0] ** 2 + x[:, 1] ** 2 + x[:, 2] ** 2 - 1.0
+
+    with pytest.raises(Boom, match="no more") as info:
+        problem(f).trace()
+    assert any(entry.name == "f" for entry in info.traceback)
+    # The problem is still usable afterwards.
+    good = problem(lambda x: x[:, 0] ** 2 + x[:, 1] ** 2 + x[:, 2] ** 2 - 1.0)
+    assert good.trace().complete
+
+
+def test_mesh_format_that_does_not_hold_the_manifold(tmp_path):
+    c = isomesh.Problem.preset("circle").trace().complex()
+    with pytest.raises(OSError, match="cannot hold a 1-manifold"):
+        c.write(tmp_path / "x.stl")
+    with pytest.raises(OSError, match="unknown output format"):
+        c.write(tmp_path / "x.docx")
+    with pytest.raises(IndexError):
+        c.cells(2)
