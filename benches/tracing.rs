@@ -3,11 +3,12 @@
 //!
 //! `cargo bench --bench tracing` prints a Markdown table: the median of 3 to 25 runs (about
 //! a second per case) with all cores, and peak heap per output simplex measured by a
-//! counting allocator. `-- quick` skips the largest case.
+//! counting allocator. The cases and the C++ figures are in `benches/reference.toml`.
+//! `-- quick` runs the cases up to 200,000 simplices.
 
 use std::time::Instant;
 
-use isomesh::bench::{trace_case, REFERENCE_CASES};
+use isomesh::bench::{trace_case, ReferenceCase};
 use isomesh::memory::{self, CountingAlloc};
 use isomesh::trace::CpuOracle;
 
@@ -20,9 +21,10 @@ fn main() {
         "| case | d | k | edge | simplices (C++) | simplices | C++ time | isomesh time | speed-up | bytes/simplex |"
     );
     println!("|---|---|---|---|---|---|---|---|---|---|");
-    for case in REFERENCE_CASES {
-        let (label, edge, ref_n, ref_s) = (case.label, case.edge, case.simplices, case.seconds);
-        if quick && ref_n > 1_000_000 {
+    let cases = ReferenceCase::parse_all(include_str!("reference.toml")).unwrap();
+    for case in &cases {
+        let (label, edge, ref_n, ref_s) = (&case.label, case.edge, case.simplices, case.seconds);
+        if quick && ref_n > 200_000 {
             continue;
         }
         let p = case.problem().unwrap();

@@ -1,28 +1,35 @@
 //! Measurements behind `isomesh bench` and `cargo bench`: the intersection oracle alone on
 //! the same random batches for every backend, and whole traces of the reference cases of
-//! the C++ library (GUDHI's Coxeter_triangulation, one thread, on a 2-core machine).
+//! the C++ library (GUDHI's Coxeter_triangulation, one thread, on a 2-core machine), whose
+//! figures live in `benches/reference.toml`.
 
+use std::collections::BTreeMap;
 use std::time::Instant;
 
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
+use serde::Deserialize;
 
 use crate::cpu::decide::Status;
-use crate::error::Result;
+use crate::error::{Error, Result};
 use crate::expr::{preset, ClosureFunction, Problem};
 use crate::trace::{trace, Oracle, Sample, TraceOptions};
 
 /// A reference case: a preset at an edge length, and what the C++ library does with it.
-#[derive(Clone, Copy, Debug)]
+/// The figures are data kept with the benchmarks (`benches/reference.toml`, which says how
+/// they were measured), read with [`ReferenceCase::parse_all`].
+#[derive(Clone, Debug, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct ReferenceCase {
     /// What it is, for tables.
-    pub label: &'static str,
+    pub label: String,
     /// A short name, for plots.
-    pub short: &'static str,
+    pub short: String,
     /// The preset.
-    pub preset: &'static str,
+    pub preset: String,
     /// Preset parameters.
-    pub params: &'static [(&'static str, f64)],
+    #[serde(default)]
+    pub params: BTreeMap<String, f64>,
     /// Longest edge of a d-simplex.
     pub edge: f64,
     /// Output simplices of the C++ library.
@@ -31,82 +38,34 @@ pub struct ReferenceCase {
     pub seconds: f64,
 }
 
-/// The C++ library's figures, from the tracing issue.
-pub const REFERENCE_CASES: &[ReferenceCase] = &[
-    ReferenceCase {
-        label: "S^2 in R^3",
-        short: "S2/R3",
-        preset: "sphere",
-        params: &[],
-        edge: 0.0707,
-        simplices: 16_240,
-        seconds: 0.52,
-    },
-    ReferenceCase {
-        label: "chair",
-        short: "chair",
-        preset: "chair",
-        params: &[],
-        edge: 0.0707,
-        simplices: 11_768,
-        seconds: 0.34,
-    },
-    ReferenceCase {
-        label: "flat torus in R^4",
-        short: "T2/R4",
-        preset: "flat-torus",
-        params: &[],
-        edge: 0.0775,
-        simplices: 125_262,
-        seconds: 6.7,
-    },
-    ReferenceCase {
-        label: "S^2 in R^8",
-        short: "S2/R8",
-        preset: "sphere",
-        params: &[("d", 8.0)],
-        edge: 0.4216,
-        simplices: 20_040,
-        seconds: 2.0,
-    },
-    ReferenceCase {
-        label: "flat torus in R^10",
-        short: "T2/R10",
-        preset: "flat-torus",
-        params: &[("d", 10.0)],
-        edge: 0.2335,
-        simplices: 502_740,
-        seconds: 97.0,
-    },
-    ReferenceCase {
-        label: "3-torus in R^6",
-        short: "T3/R6",
-        preset: "3-torus",
-        params: &[],
-        edge: 0.5555,
-        simplices: 468_446,
-        seconds: 54.0,
-    },
-    ReferenceCase {
-        label: "3-torus in R^6 (fine)",
-        short: "T3/R6 fine",
-        preset: "3-torus",
-        params: &[],
-        edge: 0.3703,
-        simplices: 1_620_304,
-        seconds: 263.0,
-    },
-];
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct ReferenceFile {
+    case: Vec<ReferenceCase>,
+}
 
 impl ReferenceCase {
+    /// The cases of a reference file (`[[case]]` tables with the fields above), checked:
+    /// an error names the first bad one.
+    pub fn parse_all(text: &str) -> Result<Vec<ReferenceCase>> {
+        let file: ReferenceFile =
+            toml::from_str(text).map_err(|e| Error::Spec(format!("reference cases: {e}")))?;
+        for c in &file.case {
+            let positive = |v: f64| v.is_finite() && v > 0.0;
+            if !(positive(c.edge) && positive(c.seconds) && c.simplices > 0) {
+                return Err(Error::Spec(format!(
+                    "reference case {:?}: edge, simplices and seconds must be positive",
+                    c.label
+                )));
+            }
+        }
+        Ok(file.case)
+    }
+
     /// The preset at this case's edge length.
     pub fn problem(&self) -> Result<Problem> {
-        let params: Vec<(String, f64)> = self
-            .params
-            .iter()
-            .map(|(n, v)| (n.to_string(), *v))
-            .collect();
-        let mut p = preset(self.preset, &params)?;
+        let params: Vec<(String, f64)> = self.params.iter().map(|(n, v)| (n.clone(), *v)).collect();
+        let mut p = preset(&self.preset, &params)?;
         p.triangulation.edge = Some(self.edge);
         Ok(p)
     }
@@ -206,4 +165,29 @@ pub fn median(mut v: Vec<f64>) -> f64 {
     }
     v.sort_by(f64::total_cmp);
     v[v.len() / 2]
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn reference_cases_parse_and_bad_ones_are_refused() {
+        let good = "[[case]]\nlabel = \"a\"\nshort = \"a\"\npreset = \"sphere\"\n\
+                    params = { d = 4 }\nedge = 0.5\nsimplices = 10\nseconds = 1.5\n";
+        let cases = ReferenceCase::parse_all(good).unwrap();
+        assert_eq!(cases.len(), 1);
+        assert_eq!(cases[0].params.get("d"), Some(&4.0));
+        assert_eq!(cases[0].problem().unwrap().dim(), 4);
+        for bad in [
+            good.replace("seconds = 1.5", "seconds = 0"),
+            good.replace("edge = 0.5", "edge = -1"),
+            good.replace("simplices = 10", "simplices = 0"),
+            good.replace("short", "shrt"),
+            good.replace("seconds = 1.5", "seconds = \"fast\""),
+        ] {
+            let e = ReferenceCase::parse_all(&bad).unwrap_err();
+            assert!(e.to_string().contains("reference case"), "{e}");
+        }
+    }
 }

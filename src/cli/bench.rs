@@ -6,7 +6,7 @@
 use std::path::PathBuf;
 
 use clap::{Args, ValueEnum};
-use isomesh::bench::{timed, trace_case, OracleBatch, REFERENCE_CASES};
+use isomesh::bench::{timed, trace_case, OracleBatch, ReferenceCase};
 use isomesh::export::plot::{write_charts, Chart, Series, PALETTE};
 use isomesh::export::write_atomic;
 
@@ -301,7 +301,8 @@ fn trace_table(args: &BenchArgs, gpu: Option<&Gpu>) -> Result<Vec<Value>> {
     );
     say!("| case | d | k | simplices | C++ | CPU | CPU speed-up | GPU | GPU speed-up | same S |");
     say!("|---|---|---|---|---|---|---|---|---|---|");
-    for case in REFERENCE_CASES.iter().filter(|c| c.simplices <= limit) {
+    let cases = ReferenceCase::parse_all(include_str!("../../benches/reference.toml"))?;
+    for case in cases.iter().filter(|c| c.simplices <= limit) {
         let p = case.problem()?;
         let cpu_oracle = CpuOracle::new(&p.system);
         let (cpu_s, cpu) = timed(args.repeats, || trace_case(&p, &cpu_oracle))?;

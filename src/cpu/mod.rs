@@ -18,6 +18,8 @@ macro_rules! unrolled {
 pub(crate) use unrolled;
 
 pub mod decide;
+#[cfg(test)]
+mod decide_adversarial;
 pub mod pivot;
 pub mod program;
 pub mod scan;

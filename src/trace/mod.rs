@@ -531,17 +531,17 @@ fn sample_from<const W: usize>(
     tri: &Triangulation,
     engine: Engine<W>,
     stats: TraceStats,
-) -> Sample {
+) -> Result<Sample> {
     let words = codec.words();
     let verts = engine.verts.into_words();
     let mut vertices = KeySet::new(words);
     vertices.reserve(verts.len() / W);
     for v in verts.chunks_exact(W) {
-        vertices.insert(&v[..words]);
+        vertices.insert(&v[..words])?;
     }
     let mut keys = engine.s.into_words();
     keys.shrink_to_fit();
-    Sample {
+    Ok(Sample {
         codec,
         stride: W,
         keys,
@@ -551,7 +551,7 @@ fn sample_from<const W: usize>(
         rim_keys: engine.rim.into_words(),
         rim_points: engine.rim_points,
         stats,
-    }
+    })
 }
 
 /// Traces M = f^-1(0) on `tri` from the seeds (and/or a box search) in `opts`, with `oracle`.
@@ -619,7 +619,7 @@ fn trace_with<const W: usize>(
     stats.memory_bytes = engine.bytes() as u64;
     stats.elapsed_s = start.elapsed().as_secs_f64();
     let tri = engine.ctx.tri;
-    Ok(sample_from(codec, tri, engine, stats))
+    sample_from(codec, tri, engine, stats)
 }
 
 /// Every crossed k-simplex of `tri` whose point lies in `opts.bbox` (required), with no seed.
@@ -670,7 +670,7 @@ fn exhaustive_with<const W: usize>(ctx: TraceContext) -> Result<Sample> {
     stats.memory_bytes = engine.bytes() as u64;
     stats.elapsed_s = start.elapsed().as_secs_f64();
     let tri = engine.ctx.tri;
-    Ok(sample_from(codec, tri, engine, stats))
+    sample_from(codec, tri, engine, stats)
 }
 
 #[cfg(test)]

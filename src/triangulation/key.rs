@@ -221,6 +221,8 @@ impl BitReader<'_> {
 #[derive(Clone, Debug)]
 pub struct KeySet {
     words: usize,
+    /// Most keys it may hold: 2^32, the positions its table stores (lowered in tests).
+    max_keys: usize,
     arena: Vec<u64>,
     table: HashTable<u32>,
     hasher: FixedState,
@@ -231,6 +233,7 @@ impl KeySet {
     pub fn new(words: usize) -> Self {
         KeySet {
             words,
+            max_keys: 1 << 32,
             arena: Vec::new(),
             table: HashTable::new(),
             hasher: FixedState::with_seed(0x1503_e5a1),
@@ -269,8 +272,9 @@ impl KeySet {
             .map(|&i| i as usize)
     }
 
-    /// Inserts `key`; returns its index and whether it was new.
-    pub fn insert(&mut self, key: &[u64]) -> (usize, bool) {
+    /// Inserts `key`; returns its index and whether it was new. An error, and the set
+    /// unchanged, when a new key would need an index past u32 (2^32 keys held already).
+    pub fn insert(&mut self, key: &[u64]) -> Result<(usize, bool)> {
         debug_assert_eq!(key.len(), self.words);
         let h = self.hash(key);
         let w = self.words;
@@ -278,6 +282,7 @@ impl KeySet {
             arena,
             table,
             hasher,
+            max_keys,
             ..
         } = self;
         let entry = table.entry(
@@ -286,12 +291,16 @@ impl KeySet {
             |&i| hasher.hash_one(&arena[i as usize * w..(i as usize + 1) * w]),
         );
         match entry {
-            hashbrown::hash_table::Entry::Occupied(e) => (*e.get() as usize, false),
+            hashbrown::hash_table::Entry::Occupied(e) => Ok((*e.get() as usize, false)),
             hashbrown::hash_table::Entry::Vacant(e) => {
                 let i = arena.len() / w;
+                let pos = u32::try_from(i)
+                    .ok()
+                    .filter(|_| i < *max_keys)
+                    .ok_or_else(|| Error::Io(format!("more than {max_keys} keys")))?;
                 arena.extend_from_slice(key);
-                e.insert(i as u32);
-                (i, true)
+                e.insert(pos);
+                Ok((i, true))
             }
         }
     }
@@ -313,5 +322,26 @@ impl KeySet {
     /// Bytes held by the arena and the table.
     pub fn memory_bytes(&self) -> usize {
         self.arena.capacity() * 8 + self.table.allocation_size()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_key_set_refuses_a_key_past_its_last_index() {
+        let mut set = KeySet::new(2);
+        set.max_keys = 3;
+        for i in 0..3u64 {
+            assert_eq!(set.insert(&[i, 7]).unwrap(), (i as usize, true));
+        }
+        // Known keys are still found; a new one is refused and leaves the set as it was.
+        assert_eq!(set.insert(&[1, 7]).unwrap(), (1, false));
+        let e = set.insert(&[9, 9]).unwrap_err();
+        assert!(e.to_string().contains("more than 3 keys"), "{e}");
+        assert_eq!(set.len(), 3);
+        assert_eq!(set.find(&[9, 9]), None);
+        assert_eq!(set.find(&[2, 7]), Some(2));
     }
 }
