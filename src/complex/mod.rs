@@ -1,4 +1,5 @@
-//! The cell complex M-hat built from a traced sample S (paper 004, sections 3.2 and 5.1).
+//! The cell complex M-hat built from a traced sample S (Boissonnat, Kachanovich and Wintraecken, "Tracing isomanifolds in R^d in time
+//! polynomial in d using Coxeter-Freudenthal-Kuhn triangulations", sections 3.2 and 5.1).
 //!
 //! Its j-cells (j = 0..m) are the (k+j)-simplices of T with a crossed k-face: the cell is
 //! where the piecewise-linear f-hat vanishes inside that simplex, and its facets are the cells

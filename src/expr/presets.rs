@@ -35,7 +35,7 @@ pub const PRESETS: &[PresetInfo] = &[
     },
     PresetInfo {
         name: "chair",
-        about: "the genus-3 'chair' surface (paper 000, Figure 6), embedded in R^d",
+        about: "the genus-3 'chair' surface (Boissonnat, Kachanovich, Wintraecken 2019, Figure 6), embedded in R^d",
         params: &[("a", 0.8), ("b", 0.4), ("d", 3.0), ("edge", 0.0707)],
     },
     PresetInfo {
@@ -45,22 +45,22 @@ pub const PRESETS: &[PresetInfo] = &[
     },
     PresetInfo {
         name: "3-torus",
-        about: "3-torus S^1 x S^1 x S^1 in R^6 with radii a, b, c (paper 003)",
+        about: "3-torus S^1 x S^1 x S^1 in R^6 with radii a, b, c (Castelo et al., GCMH, 2022)",
         params: &[("a", 0.5), ("b", 1.0), ("c", 2.0), ("edge", 0.5555)],
     },
     PresetInfo {
         name: "complex-cosine",
-        about: "the graph z = cos(w) in C^2 = R^4 (paper 003), inside a box",
+        about: "the graph z = cos(w) in C^2 = R^4 (Castelo et al., GCMH, 2022), inside a box",
         params: &[("edge", 0.1)],
     },
     PresetInfo {
         name: "bagel-klein",
-        about: "the Bagel Klein bottle in R^5 (paper 003, Figure 1), a graph over (s, t) in a box",
+        about: "a disk cut from the Bagel Klein bottle in R^5 (Castelo et al., GCMH, 2022, Figure 1): a graph over (s, t) in a box, so it has a boundary",
         params: &[("a", 3.0), ("edge", 0.15)],
     },
     PresetInfo {
         name: "cut-flat-torus",
-        about: "flat torus in R^4 cut by the ball (x1-1)^2+x2^2+(x3-1)^2+x4^2 <= 4 (paper 000, Figure 8)",
+        about: "flat torus in R^4 cut by the ball (x1-1)^2+x2^2+(x3-1)^2+x4^2 <= 4 (Boissonnat, Kachanovich, Wintraecken 2019, Figure 8)",
         params: &[("edge", 0.15)],
     },
 ];
