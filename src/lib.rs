@@ -68,5 +68,10 @@ pub mod trace;
 pub mod triangulation;
 
 pub use error::{Error, Result};
+
+/// README's Rust example, compiled as a doctest.
+#[cfg(doctest)]
+#[doc = include_str!("../README.md")]
+pub struct ReadmeDoctests;
 pub use mesher::{Backend, Manifold, Mesher, WriteOptions};
 pub use report::Report;
