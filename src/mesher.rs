@@ -23,7 +23,7 @@ use std::time::Instant;
 
 use crate::complex::{Complex, Topology};
 use crate::error::{Error, Result};
-use crate::export::mesh::{write_mesh, Mesh};
+use crate::export::mesh::{write_mesh_as, Encoding, Mesh};
 use crate::export::picture::Picture;
 use crate::export::{write_sample, OutputFormat, Projection};
 use crate::expr::{preset, ImplicitFunction, Problem, Spec, TriangulationSpec};
@@ -444,6 +444,8 @@ pub struct WriteOptions {
     pub format: Option<String>,
     /// How R^d is seen in 3-D: `auto` (the default), `pca`, or coordinates such as `1,2,4`.
     pub projection: Option<String>,
+    /// PLY and VTU as text instead of binary (`--ascii`).
+    pub ascii: bool,
 }
 
 impl Manifold {
@@ -536,7 +538,12 @@ impl Manifold {
                 let c = self.complex()?;
                 format.check_holds(c.dim(), path)?;
                 let mesh = self.mesh(c, opts.projection.as_deref())?;
-                write_mesh(path, &mesh, format)
+                let encoding = if opts.ascii {
+                    Encoding::Ascii
+                } else {
+                    Encoding::Binary
+                };
+                write_mesh_as(path, &mesh, format, encoding)
             }
         }
     }

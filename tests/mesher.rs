@@ -220,6 +220,16 @@ fn every_format_is_written_from_the_result_alone() {
     };
     torus.write_with(dir.path("points.dat"), &opts).unwrap();
     assert_eq!(read_csv(&dir.path("points.dat")), torus.points());
+    // PLY is binary unless asked for text.
+    let head = |p: &Path| std::fs::read(p).unwrap()[..40].to_vec();
+    let text = |b: Vec<u8>| String::from_utf8_lossy(&b).into_owned();
+    assert!(text(head(&dir.path("torus.ply"))).contains("format binary_little_endian"));
+    let ascii = isomesh::WriteOptions {
+        ascii: true,
+        ..Default::default()
+    };
+    torus.write_with(dir.path("text.ply"), &ascii).unwrap();
+    assert!(text(head(&dir.path("text.ply"))).contains("format ascii"));
     torus.picture(dir.path("torus.png"), 320, 240).unwrap();
     assert!(std::fs::metadata(dir.path("torus.png")).unwrap().len() > 1000);
     // The complex was built once, and the report now has its keys.

@@ -148,8 +148,10 @@ class Complex:
     def mesh_arrays(self, projection: str = "auto") -> dict[str, npt.NDArray[Any]]: ...
     def to_meshio(self, projection: str = "auto") -> Any:
         """A meshio.Mesh."""
-    def write(self, path: PathLike, format: Optional[str] = None, projection: str = "auto") -> None:
-        """Every output format of the CLI, chosen by the extension."""
+    def write(self, path: PathLike, format: Optional[str] = None, projection: str = "auto",
+              ascii: bool = False) -> None:
+        """Every output format of the CLI, chosen by the extension; PLY and VTU are binary
+        unless ascii=True."""
     def picture(self, path: PathLike, width: int = 1200, height: int = 900,
                 projection: str = "auto") -> None:
         """A PNG picture of the mesh."""

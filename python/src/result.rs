@@ -147,7 +147,7 @@ impl Sample {
     fn write(&self, py: Python<'_>, path: PathBuf, format: Option<&str>) -> PyResult<()> {
         let opts = WriteOptions {
             format: format.map(str::to_string),
-            projection: None,
+            ..WriteOptions::default()
         };
         let inner = self.inner.clone();
         released(py, &self.callable, move || inner.write_with(&path, &opts))
@@ -377,18 +377,21 @@ impl Complex {
 
     /// Writes the mesh (.ply, .obj, .off, .stl, .mesh, .vtu, .npz) or the sample's points
     /// (.csv, .xyz, .txt), like the CLI's --out; `format` overrides the extension and
-    /// `projection` chooses how R^d is seen in 3-D.
-    #[pyo3(signature = (path, format=None, projection="auto"))]
+    /// `projection` chooses how R^d is seen in 3-D; `ascii` writes PLY and VTU as text
+    /// (like --ascii) instead of binary.
+    #[pyo3(signature = (path, format=None, projection="auto", ascii=false))]
     fn write(
         &self,
         py: Python<'_>,
         path: PathBuf,
         format: Option<&str>,
         projection: &str,
+        ascii: bool,
     ) -> PyResult<()> {
         let opts = WriteOptions {
             format: format.map(str::to_string),
             projection: Some(projection.to_string()),
+            ascii,
         };
         let inner = self.inner.clone();
         released(py, &self.callable, move || inner.write_with(&path, &opts))
