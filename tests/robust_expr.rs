@@ -148,6 +148,29 @@ fn long_chains_keep_their_value() {
 }
 
 #[test]
+fn regrouping_a_long_chain_does_not_invent_an_overflow() {
+    // A balanced tree groups 8000 divisors of 1.5 into halves whose products exceed f64;
+    // written left to right the quotient merely underflows, and it must parse and evaluate
+    // to a number as small.
+    let scope = Scope::new(3);
+    let div = parse_expr(&format!("x{}", " / 1.5".repeat(8000)), &scope).unwrap();
+    let left_to_right = (0..8000).fold(0.3f64, |acc, _| acc / 1.5);
+    let tiny = |v: f64| (0.0..1e-300).contains(&v);
+    assert!(tiny(left_to_right));
+    assert!(tiny(div.eval(&[0.3, 0.0, 0.0])));
+    let back = parse_expr(&div.to_string(), &scope).unwrap();
+    assert_eq!(back.eval(&[0.3, 0.0, 0.0]), div.eval(&[0.3, 0.0, 0.0]));
+    // A product that does overflow is evaluated as written: infinite, like the left-to-right
+    // product, and the trace reports it; a division by zero is still refused at once.
+    let mul = parse_expr(&format!("x{}", " * 1.5".repeat(8000)), &scope).unwrap();
+    assert_eq!(mul.eval(&[0.3, 0.0, 0.0]), f64::INFINITY);
+    for bad in ["x + 1/0", "x - 0/0", "sqrt(-1) * x"] {
+        let err = parse_expr(bad, &scope).unwrap_err();
+        assert_eq!(err.kind, ErrorKind::NonFinite, "{bad}");
+    }
+}
+
+#[test]
 fn check_and_trace_take_long_chains() {
     let dir = scratch("chains");
     for (i, ops) in [&["+"][..], &["-"], &["*"], &["/"], &["+", "*", "-", "/"]]

@@ -397,7 +397,7 @@ impl Chain {
                 return Expr::Num(0.0);
             };
             for (inv, e) in it {
-                acc = Expr::bin(if inv != flip { inverse } else { op }, acc, e);
+                acc = Chain::join(if inv != flip { inverse } else { op }, acc, e);
             }
             return acc;
         }
@@ -405,7 +405,21 @@ impl Chain {
         let right_inverted = right[0].0 != flip;
         let lhs = Chain::build(items, op, inverse, flip);
         let rhs = Chain::build(right, op, inverse, flip != right_inverted);
-        Expr::bin(if right_inverted { inverse } else { op }, lhs, rhs)
+        Chain::join(if right_inverted { inverse } else { op }, lhs, rhs)
+    }
+
+    /// Joins two operands of a chain, folding constants. Where folding two finite constants
+    /// would overflow, they stay unfolded, to be evaluated as written: a long chain is
+    /// regrouped (`x / 1.5 / 1.5 ...` multiplies its divisors first), and regrouping must not
+    /// turn a valid equation into an invalid one. Division by zero still folds, and fails.
+    fn join(op: Op2, lhs: Expr, rhs: Expr) -> Expr {
+        if let (Some(a), Some(b)) = (lhs.as_num(), rhs.as_num()) {
+            let overflow = a.is_finite() && b.is_finite() && !op.apply(a, b).is_finite();
+            if overflow && !(op == Op2::Div && b == 0.0) {
+                return Expr::Bin(op, Box::new(lhs), Box::new(rhs));
+            }
+        }
+        Expr::bin(op, lhs, rhs)
     }
 
     fn finish(self) -> Expr {
