@@ -55,6 +55,18 @@ pub enum Error {
     /// No usable GPU, or a GPU operation that failed.
     #[error("gpu: {0}")]
     Gpu(String),
+    /// Work that stopped (or did not start) because the heap would pass the memory limit.
+    #[error(
+        "{what} needs more than the memory limit of {}: raise the limit (--max-memory) or \
+         write smaller equations",
+        crate::memory::human_bytes(*limit)
+    )]
+    MemoryLimit {
+        /// What stopped ("parsing equation 1"...).
+        what: String,
+        /// The limit, bytes.
+        limit: u64,
+    },
     /// Input/output failure, with the path involved.
     #[error("{0}")]
     Io(String),

@@ -110,7 +110,10 @@ fn main() -> ExitCode {
             spec,
             preset,
             params,
-        }) => cli::load(spec, preset, &params).and_then(|p| cli::check(&p)),
+        }) => isomesh::memory::within(isomesh::memory::default_limit(), || {
+            cli::load(spec, preset, &params)
+        })
+        .and_then(|p| cli::check(&p)),
         None => {
             say!(
                 "isomesh with no command traces the built-in torus (R = 1, r = 0.4) on a \

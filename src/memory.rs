@@ -2,6 +2,7 @@
 //! memory limit.
 
 use std::alloc::{GlobalAlloc, Layout, System};
+use std::cell::Cell;
 use std::sync::atomic::{AtomicUsize, Ordering};
 
 /// The system allocator, counting live and peak heap bytes. Binaries opt in with
@@ -67,6 +68,82 @@ pub fn in_use(estimate: usize) -> u64 {
     match live_bytes() {
         0 => estimate as u64,
         live => live as u64,
+    }
+}
+
+thread_local! {
+    /// The heap limit that parsing and compiling on this thread check (see [`within`]).
+    static LIMIT: Cell<u64> = const { Cell::new(u64::MAX) };
+}
+
+/// Runs `f` with a heap limit of `limit` bytes for the work on this thread that checks
+/// [`over_limit`]: parsing equations, differentiating and compiling them. Such work stops
+/// with an error once the counted heap passes the limit, instead of growing without one.
+pub fn within<T>(limit: u64, f: impl FnOnce() -> T) -> T {
+    struct Restore(u64);
+    impl Drop for Restore {
+        fn drop(&mut self) {
+            LIMIT.set(self.0);
+        }
+    }
+    let _restore = Restore(LIMIT.replace(limit));
+    f()
+}
+
+/// The limit set by [`within`] when the counted heap is over it (never without
+/// [`CountingAlloc`], whose count is then 0).
+pub fn over_limit() -> Option<u64> {
+    let limit = LIMIT.get();
+    (live_bytes() as u64 > limit).then_some(limit)
+}
+
+/// An error when `bytes` more would take the counted heap past this thread's limit (set by
+/// [`within`]): for work that needs a known amount at once, checked before it starts.
+pub(crate) fn ensure_room(what: &str, bytes: u64) -> crate::Result<()> {
+    let limit = LIMIT.get();
+    if live_bytes() > 0 && (live_bytes() as u64).saturating_add(bytes) > limit {
+        return Err(crate::Error::MemoryLimit {
+            what: format!("{what} (about {})", human_bytes(bytes)),
+            limit,
+        });
+    }
+    Ok(())
+}
+
+/// Counts the steps of a long computation (parsing, differentiating, compiling) and checks
+/// [`over_limit`] once every 1024 of them; unchecked ones never fail.
+pub(crate) struct Ticks {
+    n: u32,
+    checked: bool,
+}
+
+impl Ticks {
+    /// Steps that check this thread's limit.
+    pub(crate) fn checked() -> Self {
+        Ticks {
+            n: 0,
+            checked: true,
+        }
+    }
+
+    /// Steps that never fail.
+    pub(crate) fn unchecked() -> Self {
+        Ticks {
+            n: 0,
+            checked: false,
+        }
+    }
+
+    /// One step: `Err(limit)` when the heap has passed this thread's limit.
+    #[inline]
+    pub(crate) fn tick(&mut self) -> Result<(), u64> {
+        self.n = self.n.wrapping_add(1);
+        if self.checked && self.n % 1024 == 0 {
+            if let Some(limit) = over_limit() {
+                return Err(limit);
+            }
+        }
+        Ok(())
     }
 }
 

@@ -45,6 +45,31 @@ fn out_dash_writes_the_sample_to_standard_output() {
 }
 
 #[test]
+fn report_dash_writes_the_report_to_standard_output() {
+    let dir = Scratch::new("report-stdout");
+    for preset in ["circle", "sphere"] {
+        let o = isomesh(&dir.0, &["trace", "--preset", preset, "--report", "-"]);
+        assert!(o.status.success(), "{}", stderr(&o));
+        // Standard output is the report alone, as the file would hold it.
+        let out = String::from_utf8(o.stdout.clone()).unwrap();
+        let r: serde_json::Value = serde_json::from_str(&out).expect("stdout is the JSON report");
+        assert_eq!(r["complete"], true, "{r}");
+        assert!(r["simplex_count"].as_u64().unwrap() > 50, "{r}");
+        let o2 = isomesh(&dir.0, &["trace", "--preset", preset, "--report", "r.json"]);
+        let file = common::report(&dir.path("r.json"));
+        assert_eq!(r["simplex_count"], file["simplex_count"]);
+        for key in ["levels", "components", "euler_characteristic", "betti_mod2"] {
+            assert_eq!(r[key], file[key], "{key}");
+        }
+        assert!(o2.status.success());
+        // The summary went to standard error, and no file is named `-`.
+        assert!(stderr(&o).contains("crossed"), "{}", stderr(&o));
+        assert!(!dir.path("-").exists());
+        std::fs::remove_file(dir.path("r.json")).unwrap();
+    }
+}
+
+#[test]
 fn huge_numbers_print_short() {
     let dir = Scratch::new("numbers");
     for (edge, shown) in [

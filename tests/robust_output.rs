@@ -212,6 +212,11 @@ fn output_flags_are_checked_before_tracing() {
         (&["--level-slice", "100"], "--level-slice"),
         (&["--out", "-", "--format", "ply"], "standard output"),
         (&["--out", "-", "--out", "-"], "twice"),
+        (
+            &["--out", "-", "--report", "-"],
+            "both ask for standard output",
+        ),
+        (&["--png", "-"], "--png -"),
     ];
     for (flags, what) in cases {
         let mut extra = flags.to_vec();

@@ -290,7 +290,11 @@ fn max_threads() -> usize {
 
 /// Runs `isomesh trace` with `args`.
 pub fn run(args: &TraceArgs) -> Result<()> {
-    let mut problem = load(args.spec.clone(), args.preset.clone(), &args.params)?;
+    // Parsing, differentiating and compiling the equations stop at the memory limit too.
+    let limit = args.max_memory.unwrap_or_else(memory::default_limit);
+    let mut problem = memory::within(limit, || {
+        load(args.spec.clone(), args.preset.clone(), &args.params)
+    })?;
     apply_flags(&mut problem, args)?;
     let plan = plan_outputs(args, &problem)?;
     let mut threads = args.threads.unwrap_or_else(rayon::current_num_threads);
@@ -310,6 +314,11 @@ pub fn run(args: &TraceArgs) -> Result<()> {
         .build()
         .map_err(|e| Error::Io(format!("cannot start {threads} threads: {e}")))?;
     pool.install(|| run_in_pool(&problem, args, &plan, threads))
+}
+
+/// `--report -`: the JSON report goes to standard output.
+fn report_to_stdout(args: &TraceArgs) -> bool {
+    args.report.as_ref().is_some_and(|p| p.as_os_str() == "-")
 }
 
 /// One --out: where it goes and what it receives.
@@ -348,7 +357,8 @@ fn plan_outputs(args: &TraceArgs, p: &Problem) -> Result<Plan> {
         match &kind {
             Output::Mesh(_) if stdout => {
                 return Err(Error::Spec(
-                    "--out -: standard output takes the sample only (csv or xyz); write mesh                      files to a path"
+                    "--out -: standard output takes the sample only (csv or xyz); write mesh \
+                     files to a path"
                         .into(),
                 ))
             }
@@ -364,6 +374,16 @@ fn plan_outputs(args: &TraceArgs, p: &Problem) -> Result<Plan> {
     if outs.iter().filter(|o| o.stdout).count() > 1 {
         return Err(Error::Spec("--out - is given twice".into()));
     }
+    if report_to_stdout(args) && outs.iter().any(|o| o.stdout) {
+        return Err(Error::Spec(
+            "--out - and --report - both ask for standard output: give one of them a path".into(),
+        ));
+    }
+    if args.png.as_ref().is_some_and(|p| p.as_os_str() == "-") {
+        return Err(Error::Spec(
+            "--png -: a picture is written to a file; give a path".into(),
+        ));
+    }
     let projection = Projection::parse(&args.project, d)?;
     let wants_mesh = args.png.is_some() || outs.iter().any(|o| matches!(o.kind, Output::Mesh(_)));
     if args.no_complex && wants_mesh {
@@ -378,7 +398,8 @@ fn plan_outputs(args: &TraceArgs, p: &Problem) -> Result<Plan> {
         ] {
             if set {
                 return Err(Error::Spec(format!(
-                    "{flag} sets the GPU oracle; the CPU backend (the default) has no use for                      it: add --backend gpu or --backend auto, or leave {flag} out"
+                    "{flag} sets the GPU oracle; the CPU backend (the default) has no use for \
+                     it: add --backend gpu or --backend auto, or leave {flag} out"
                 )));
             }
         }
@@ -390,7 +411,12 @@ fn plan_outputs(args: &TraceArgs, p: &Problem) -> Result<Plan> {
         .filter(|o| !o.stdout)
         .map(|o| ("--out", o.path.as_path()))
         .chain(args.png.iter().map(|p| ("--png", p.as_path())))
-        .chain(args.report.iter().map(|p| ("--report", p.as_path())));
+        .chain(
+            args.report
+                .iter()
+                .filter(|_| !report_to_stdout(args))
+                .map(|p| ("--report", p.as_path())),
+        );
     for (flag, path) in named {
         check_target(path).map_err(|e| Error::Io(format!("{flag} {e}")))?;
         let id = FileId::of(path)?;
@@ -692,13 +718,21 @@ fn run_in_pool(p: &Problem, args: &TraceArgs, plan: &Plan, threads: usize) -> Re
                 t.components,
             );
         }
-        phase(&format!("writing {}", shown(&path.display().to_string())));
-        write_atomic(path, |w| writeln!(w, "{}", report.to_json()))?;
-        written.push(path.clone());
+        if report_to_stdout(args) {
+            let mut out = std::io::stdout().lock();
+            writeln!(out, "{}", report.to_json())
+                .and_then(|()| out.flush())
+                .map_err(|e| Error::Io(format!("standard output: {e}")))?;
+        } else {
+            phase(&format!("writing {}", shown(&path.display().to_string())));
+            write_atomic(path, |w| writeln!(w, "{}", report.to_json()))?;
+            written.push(path.clone());
+        }
     }
     if !args.quiet {
-        // With the sample on standard output, the summary goes to standard error.
-        let to_stderr = plan.outs.iter().any(|o| o.stdout);
+        // With the sample or the report on standard output, the summary goes to standard
+        // error.
+        let to_stderr = plan.outs.iter().any(|o| o.stdout) || report_to_stdout(args);
         let line = |text: String| {
             if to_stderr {
                 eprintln!("{text}");

@@ -7,6 +7,7 @@
 use std::collections::HashMap;
 
 use crate::expr::ast::{powi, Expr, Op1, Op2};
+use crate::memory::Ticks;
 
 /// Points per chunk: registers are arrays of this many lanes.
 pub const LANES: usize = 64;
@@ -80,31 +81,50 @@ impl Builder {
         id
     }
 
-    fn add(&mut self, e: &Expr) -> u32 {
+    fn add(&mut self, e: &Expr, ticks: &mut Ticks) -> Result<u32, u64> {
+        ticks.tick()?;
         let node = match e {
             Expr::Num(v) => Node::Const(*v),
             Expr::Var(i) => Node::Var(*i),
             Expr::Un(op, a) => {
-                let a = self.add(a);
+                let a = self.add(a, ticks)?;
                 Node::Un(*op, a)
             }
             Expr::Bin(op, a, b) => {
-                let a = self.add(a);
-                let b = self.add(b);
+                let a = self.add(a, ticks)?;
+                let b = self.add(b, ticks)?;
                 Node::Bin(*op, a, b)
             }
             Expr::PowI(a, n) => {
-                let a = self.add(a);
+                let a = self.add(a, ticks)?;
                 Node::PowI(a, *n)
             }
         };
-        self.intern(node)
+        Ok(self.intern(node))
     }
 }
 
 impl Program {
     /// Compiles `exprs` (in variables x_1..x_dim) into one program with one output each.
     pub fn compile(exprs: &[Expr], dim: usize) -> Program {
+        match Program::build(exprs, dim, &mut Ticks::unchecked()) {
+            Ok(p) => p,
+            Err(_) => unreachable!("unchecked steps never fail"),
+        }
+    }
+
+    /// [`Program::compile`], stopping with the limit once the heap passes this thread's
+    /// memory limit (see [`crate::memory::within`]).
+    pub fn compile_within_limit(exprs: &[Expr], dim: usize) -> Result<Program, crate::Error> {
+        Program::build(exprs, dim, &mut Ticks::checked()).map_err(|limit| {
+            crate::Error::MemoryLimit {
+                what: "compiling the equations".into(),
+                limit,
+            }
+        })
+    }
+
+    fn build(exprs: &[Expr], dim: usize, ticks: &mut Ticks) -> Result<Program, u64> {
         let mut b = Builder {
             nodes: Vec::new(),
             index: HashMap::new(),
@@ -113,7 +133,10 @@ impl Program {
         for i in 0..dim {
             b.intern(Node::Var(i));
         }
-        let outputs: Vec<u32> = exprs.iter().map(|e| b.add(e)).collect();
+        let outputs = exprs
+            .iter()
+            .map(|e| b.add(e, ticks))
+            .collect::<Result<Vec<u32>, u64>>()?;
         let nodes = b.nodes;
         let plan = fuse(&nodes, &outputs);
 
@@ -169,7 +192,7 @@ impl Program {
             })
             .collect();
         let out_regs = outputs.iter().map(|&o| reg[o as usize]).collect();
-        Program {
+        Ok(Program {
             dim,
             nodes,
             outputs,
@@ -177,7 +200,7 @@ impl Program {
             consts,
             out_regs,
             n_regs: n_regs as usize,
-        }
+        })
     }
 
     /// Number of variables.

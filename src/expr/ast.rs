@@ -3,6 +3,8 @@
 
 use std::fmt;
 
+use crate::memory::Ticks;
+
 /// A one-argument operation.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum Op1 {
@@ -302,14 +304,32 @@ impl Expr {
 
     /// The partial derivative with respect to variable `v`, simplified.
     pub fn diff(&self, v: usize) -> Expr {
+        match self.derive(v, &mut Ticks::unchecked()) {
+            Ok(e) => e,
+            Err(_) => unreachable!("unchecked steps never fail"),
+        }
+    }
+
+    /// [`Expr::diff`], stopping with the limit once the heap passes this thread's memory
+    /// limit (see [`crate::memory::within`]).
+    pub fn diff_within_limit(&self, v: usize) -> Result<Expr, crate::Error> {
+        self.derive(v, &mut Ticks::checked())
+            .map_err(|limit| crate::Error::MemoryLimit {
+                what: "differentiating the equations".into(),
+                limit,
+            })
+    }
+
+    fn derive(&self, v: usize, ticks: &mut Ticks) -> Result<Expr, u64> {
         use Expr as E;
-        match self {
+        ticks.tick()?;
+        Ok(match self {
             E::Num(_) => num(0.0),
             E::Var(i) => num(if *i == v { 1.0 } else { 0.0 }),
             E::Un(op, a) => {
-                let da = a.diff(v);
+                let da = a.derive(v, ticks)?;
                 if da.is(0.0) {
-                    return num(0.0);
+                    return Ok(num(0.0));
                 }
                 let a = (**a).clone();
                 let outer = match op {
@@ -336,16 +356,16 @@ impl Expr {
                 E::mul(outer, da)
             }
             E::PowI(a, n) => {
-                let da = a.diff(v);
+                let da = a.derive(v, ticks)?;
                 if da.is(0.0) {
-                    return num(0.0);
+                    return Ok(num(0.0));
                 }
                 E::mul(E::mul(num(*n as f64), E::powi((**a).clone(), n - 1)), da)
             }
             E::Bin(op, a, b) => {
-                let (da, db) = (a.diff(v), b.diff(v));
+                let (da, db) = (a.derive(v, ticks)?, b.derive(v, ticks)?);
                 if da.is(0.0) && db.is(0.0) {
-                    return num(0.0);
+                    return Ok(num(0.0));
                 }
                 // Operands are copied only where the derivative uses them (copying them at
                 // every level of a sum made long sums quadratic).
@@ -353,14 +373,12 @@ impl Expr {
                 match op {
                     Op2::Add => E::add(da, db),
                     Op2::Sub => E::sub(da, db),
-                    Op2::Mul => {
-                        let (a, b) = ab();
-                        E::add(E::mul(da, b), E::mul(a, db))
-                    }
-                    Op2::Div => {
-                        let (a, b) = ab();
-                        E::div(E::sub(E::mul(da, b.clone()), E::mul(a, db)), E::powi(b, 2))
-                    }
+                    // A zero derivative's product is zero: its operand is not copied.
+                    Op2::Mul => E::add(scaled(da, b), scaled(db, a)),
+                    Op2::Div => E::div(
+                        E::sub(scaled(da, b), scaled(db, a)),
+                        E::powi((**b).clone(), 2),
+                    ),
                     Op2::Pow => {
                         // d(a^b) = a^b (b' ln a + b a' / a)
                         let (a, b) = ab();
@@ -388,7 +406,16 @@ impl Expr {
                     }
                 }
             }
-        }
+        })
+    }
+}
+
+/// `d * e`, copying `e` only when `d` is not zero.
+fn scaled(d: Expr, e: &Expr) -> Expr {
+    if d.is(0.0) {
+        num(0.0)
+    } else {
+        Expr::mul(d, e.clone())
     }
 }
 

@@ -30,7 +30,8 @@ pub enum ErrorKind {
     DuplicateName,
     /// A constant sub-expression that is NaN or infinite (such as `1/0` or `sqrt(-1)`).
     NonFinite,
-    /// More than [`MAX_TOKENS`] tokens in one equation.
+    /// More than [`MAX_TOKENS`] tokens in one equation, or more heap than the memory limit
+    /// (see [`crate::memory::within`]).
     TooLarge,
     /// More than [`MAX_DEPTH`] nested levels.
     TooDeep,
@@ -158,6 +159,20 @@ impl Lexer<'_> {
                      write it in fewer terms"
                 ),
             ));
+        }
+        if self.count % 1024 == 0 {
+            if let Some(limit) = crate::memory::over_limit() {
+                return Err(err(
+                    ErrorKind::TooLarge,
+                    line,
+                    column,
+                    format!(
+                        "parsing the equation passed the memory limit of {} at this token: \
+                         raise the limit (--max-memory) or write it in fewer terms",
+                        crate::memory::human_bytes(limit)
+                    ),
+                ));
+            }
         }
         let start = self.pos;
         if c.is_ascii_digit() || (c == '.' && self.peek_char(1).is_some_and(|d| d.is_ascii_digit()))

@@ -227,9 +227,14 @@ pub fn check_box(bbox: &[[f64; 2]], d: usize) -> Result<()> {
     Ok(())
 }
 
+/// Heap the TOML reader needs for a byte of text, at its peak (measured at about 8 on a spec
+/// holding one long equation; a little more is asked for).
+const TOML_BYTES_PER_BYTE: u64 = 10;
+
 impl Spec {
     /// Parses TOML text.
     pub fn from_toml(text: &str) -> Result<Spec> {
+        crate::memory::ensure_room("reading the spec", TOML_BYTES_PER_BYTE * text.len() as u64)?;
         let mut spec: Spec = toml::from_str(text).map_err(|e| Error::Spec(e.to_string()))?;
         if let Ok(lits) = toml::from_str::<Literals>(text) {
             let at =
@@ -242,6 +247,9 @@ impl Spec {
 
     /// Reads and parses a spec file.
     pub fn from_file(path: &std::path::Path) -> Result<Spec> {
+        if let Ok(meta) = std::fs::metadata(path) {
+            crate::memory::ensure_room("reading the spec file", meta.len())?;
+        }
         let text = std::fs::read_to_string(path)
             .map_err(|e| Error::Io(format!("{}: {e}", path.display())))?;
         Self::from_toml(&text)

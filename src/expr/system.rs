@@ -119,16 +119,18 @@ impl EquationSystem {
                 e.arity()
             )));
         }
+        // Derivatives and programs can be many times an equation's size: they stop at the
+        // memory limit of `memory::within`, where one is set.
         let mut jac = Vec::with_capacity(equations.len() * d);
         for e in &equations {
             for v in 0..d {
-                jac.push(e.diff(v));
+                jac.push(e.diff_within_limit(v)?);
             }
         }
         Ok(EquationSystem {
-            values: Arc::new(Program::compile(&equations, d)),
-            jacobian: Arc::new(Program::compile(&jac, d)),
-            boundary_values: Arc::new(Program::compile(&boundary, d)),
+            values: Arc::new(Program::compile_within_limit(&equations, d)?),
+            jacobian: Arc::new(Program::compile_within_limit(&jac, d)?),
+            boundary_values: Arc::new(Program::compile_within_limit(&boundary, d)?),
             names,
             equations,
             boundary,
