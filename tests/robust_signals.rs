@@ -202,6 +202,19 @@ fn the_complex_and_the_writing_stop_cleanly() {
             "{r}"
         );
     }
+    // The topology of a complex that takes a second or more to analyse.
+    for sig in ["INT", "TERM", "HUP"] {
+        let args = [
+            "trace", "--preset", "sphere", "--param", "r=3", "--edge", "0.02", "--out", "m.ply",
+        ];
+        let r = stop_at("topology", &args, "complex: topology", sig);
+        assert!(r["simplex_count"].as_u64().unwrap() > 100_000);
+        assert!(r["betti_mod2"].is_null(), "{r}");
+        assert!(
+            !r["files"].as_array().unwrap().contains(&"m.ply".into()),
+            "{r}"
+        );
+    }
     for sig in ["INT", "TERM", "HUP"] {
         let mut args = MESHED.to_vec();
         args.extend(["--out", "m.vtu", "--out", "m.ply"]);

@@ -621,10 +621,11 @@ fn run_in_pool(p: &Problem, args: &TraceArgs, plan: &Plan, threads: usize) -> Re
         phase("complex: building the cell complex");
         match Complex::build_cancellable(&sample, sys, p.bbox.as_deref(), limit, &cancel) {
             Ok(c) => {
+                phase("complex: topology");
                 let t0 = Instant::now();
-                let topo = c.topology();
-                let topo_s = t0.elapsed().as_secs_f64();
-                Some((c, topo, topo_s))
+                // Stopped by a signal: the report says so, with no complex.
+                c.topology_cancellable(&cancel)
+                    .map(|topo| (c, topo, t0.elapsed().as_secs_f64()))
             }
             // Stopped by a signal: the report says so.
             Err(_) if stopping() => None,

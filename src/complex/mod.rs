@@ -165,6 +165,12 @@ impl Complex {
     /// The topology report (counts, Euler characteristic, manifoldness, components,
     /// orientability and Betti numbers mod 2 where defined).
     pub fn topology(&self) -> Topology {
-        topology::analyse(self)
+        topology::analyse(self, &std::sync::atomic::AtomicBool::new(false))
+            .expect("never cancelled")
+    }
+
+    /// [`Complex::topology`], or `None` once `cancel` is set (Ctrl-C).
+    pub fn topology_cancellable(&self, cancel: &std::sync::atomic::AtomicBool) -> Option<Topology> {
+        topology::analyse(self, cancel)
     }
 }

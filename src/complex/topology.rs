@@ -1,6 +1,8 @@
 //! What the complex is, topologically: cell counts, Euler characteristic, manifoldness,
 //! boundary, components, orientability (m = 2) and Betti numbers mod 2 (m <= 3).
 
+use std::sync::atomic::{AtomicBool, Ordering};
+
 use hashbrown::HashMap;
 use serde::Serialize;
 
@@ -89,7 +91,13 @@ impl UnionFind {
     }
 }
 
-pub(super) fn analyse(c: &Complex) -> Topology {
+/// Faces reduced between two looks at the cancel flag.
+const CANCEL_EVERY: usize = 4096;
+
+/// The topology of `c`; `None` once `cancel` is set (checked between stages and every
+/// [`CANCEL_EVERY`] faces of the homology reduction).
+pub(super) fn analyse(c: &Complex, cancel: &AtomicBool) -> Option<Topology> {
+    let cancelled = || cancel.load(Ordering::Relaxed);
     let m = c.dim();
     let cells = c.counts();
     let boundary_cells = c.boundary_counts();
@@ -127,6 +135,9 @@ pub(super) fn analyse(c: &Complex) -> Topology {
         }
     }
     let manifold = offender_count == 0 && c.stats.defects == 0;
+    if cancelled() {
+        return None;
+    }
 
     // Components over the edges; those with a boundary vertex are not closed.
     let mut uf = UnionFind::new(nv);
@@ -152,22 +163,30 @@ pub(super) fn analyse(c: &Complex) -> Topology {
         .filter(|(v, &r)| r == *v as u32 && !open[r as usize])
         .count();
 
+    if cancelled() {
+        return None;
+    }
     let orientable = (m == 2).then(|| Surface::new(c, None).orientable);
     let chi = euler(&cells);
-    let betti_mod2 = (manifold && m <= 3).then(|| {
+    let betti_mod2 = if manifold && m <= 3 {
         let b0 = components;
-        match m {
+        Some(match m {
             1 => vec![b0, (cells[1] + b0).saturating_sub(nv)],
-            2 => vec![b0, h1_mod2(c), closed_components],
+            2 => vec![b0, h1_mod2(c, cancel)?, closed_components],
             _ => {
-                let b1 = h1_mod2(c);
+                let b1 = h1_mod2(c, cancel)?;
                 let b3 = closed_components;
                 let b2 = chi - b0 as i64 + b1 as i64 + b3 as i64;
                 vec![b0, b1, b2.max(0) as usize, b3]
             }
-        }
-    });
-    Topology {
+        })
+    } else {
+        None
+    };
+    if cancelled() {
+        return None;
+    }
+    Some(Topology {
         dim: m,
         euler_characteristic: chi,
         cells,
@@ -182,13 +201,19 @@ pub(super) fn analyse(c: &Complex) -> Topology {
         closed_components,
         orientable,
         betti_mod2,
-    }
+    })
 }
 
 /// dim H_1(M-hat; Z/2), from the 2-skeleton: the edges off a spanning forest generate, the
 /// 2-cells relate. Relations with one or two live generators kill or identify them (this
-/// collapses most of the complex); the rest are reduced by sparse elimination.
-pub(crate) fn h1_mod2(c: &Complex) -> usize {
+/// collapses most of the complex); the rest are reduced by sparse elimination. `None` once
+/// `cancel` is set.
+fn h1_mod2(c: &Complex, cancel: &AtomicBool) -> Option<usize> {
+    let mut seen = 0usize;
+    let mut cancelled = || {
+        seen += 1;
+        seen % CANCEL_EVERY == 0 && cancel.load(Ordering::Relaxed)
+    };
     let nv = c.vertex_count();
     let edges = c.level(1);
     let mut forest = UnionFind::new(nv);
@@ -224,7 +249,12 @@ pub(crate) fn h1_mod2(c: &Complex) -> usize {
     };
     loop {
         let mut changed = false;
+        let mut stop = false;
         pending.retain(|&face| {
+            if stop || cancelled() {
+                stop = true;
+                return true;
+            }
             reduce(&mut classes, face as usize, &mut live);
             match live.len() {
                 0 => false,
@@ -241,6 +271,9 @@ pub(crate) fn h1_mod2(c: &Complex) -> usize {
                 _ => true,
             }
         });
+        if stop {
+            return None;
+        }
         if !changed {
             break;
         }
@@ -253,6 +286,9 @@ pub(crate) fn h1_mod2(c: &Complex) -> usize {
     let mut pivots: HashMap<u32, Vec<u32>> = HashMap::new();
     let mut rank = 0;
     for &face in &pending {
+        if cancelled() {
+            return None;
+        }
         reduce(&mut classes, face as usize, &mut live);
         let mut col = live.clone();
         while let Some(&p) = col.last() {
@@ -266,7 +302,7 @@ pub(crate) fn h1_mod2(c: &Complex) -> usize {
             rank += 1;
         }
     }
-    generators - rank
+    Some(generators - rank)
 }
 
 /// Removes equal neighbours two by two from a sorted list (x + x = 0 over Z/2).
