@@ -301,7 +301,7 @@ fn the_result_and_its_report_match_the_command_line() {
     for (preset, edge) in [("torus", "0.1"), ("flat-torus", "0.3"), ("circle", "0.05")] {
         let o = std::process::Command::new(env!("CARGO_BIN_EXE_isomesh"))
             .args(["trace", "--preset", preset, "--edge", edge, "--quiet"])
-            .args(["--out", "s.csv", "--report", "r.json"])
+            .args(["--out", "s.csv", "--out", "s.keys", "--report", "r.json"])
             .current_dir(&dir.0)
             .output()
             .unwrap();
@@ -314,6 +314,19 @@ fn the_result_and_its_report_match_the_command_line() {
             .trace()
             .unwrap();
         assert_eq!(read_csv(&dir.path("s.csv")), m.points(), "{preset}");
+        // The same simplices by their keys, in the same order.
+        let text = std::fs::read_to_string(dir.path("s.keys")).unwrap();
+        let words = m.sample().codec().words();
+        assert!(text.starts_with(&format!("# isomesh simplex keys: {words} ")));
+        let cli_keys: Vec<u64> = text
+            .lines()
+            .skip(1)
+            .flat_map(|l| l.split(' ').map(|w| w.parse::<u64>().unwrap()))
+            .collect();
+        let lib_keys: Vec<u64> = (0..m.len())
+            .flat_map(|i| m.sample().key(i).to_vec())
+            .collect();
+        assert_eq!(cli_keys, lib_keys, "{preset}");
         m.complex().unwrap();
         // Both through the same JSON text and parser (serde_json's parse is not exactly
         // round-trip for every float).

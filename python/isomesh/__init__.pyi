@@ -124,7 +124,7 @@ class Sample:
     def complex(self) -> Complex:
         """The cell complex (built once)."""
     def write(self, path: PathLike, format: Optional[str] = None) -> None:
-        """The points as .csv, .xyz or .txt."""
+        """The points as .csv, .xyz or .txt, or the simplices' keys as .keys."""
     def __len__(self) -> int: ...
 
 class Complex:

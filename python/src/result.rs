@@ -141,8 +141,9 @@ impl Sample {
         })
     }
 
-    /// Writes the points (.csv, .xyz, .txt) or, building the complex, the mesh (.ply, .obj,
-    /// .off, .stl, .mesh, .vtu, .npz); `format` overrides the extension.
+    /// Writes the points (.csv, .xyz, .txt), the simplices' keys (.keys) or, building the
+    /// complex, the mesh (.ply, .obj, .off, .stl, .mesh, .vtu, .npz); `format` overrides the
+    /// extension.
     #[pyo3(signature = (path, format=None))]
     fn write(&self, py: Python<'_>, path: PathBuf, format: Option<&str>) -> PyResult<()> {
         let opts = WriteOptions {

@@ -25,15 +25,23 @@ def cli_path():
 
 
 def run_cli(tmp_path, *args):
-    """Runs `isomesh trace ARGS`; returns its JSON report and its points, in order."""
+    """Runs `isomesh trace ARGS`; returns its JSON report and its points, in order (its keys
+    are left in `tmp_path`, for `cli_keys`)."""
     report = tmp_path / "cli.json"
     points = tmp_path / "cli.csv"
-    cmd = [str(cli_path()), "trace", *args, "--quiet", "--report", str(report), "--out", str(points)]
+    keys = tmp_path / "cli.keys"
+    cmd = [str(cli_path()), "trace", *args, "--quiet", "--report", str(report), "--out", str(points),
+           "--out", str(keys)]
     subprocess.run(cmd, check=True, capture_output=True, timeout=600)
     with open(report) as f:
         rep = json.load(f)
     pts = np.loadtxt(points, delimiter=",", skiprows=1, ndmin=2)
     return rep, pts
+
+
+def cli_keys(tmp_path):
+    """The simplex keys the last `run_cli` in `tmp_path` wrote, (N, W) uint64, in order."""
+    return np.loadtxt(tmp_path / "cli.keys", dtype=np.uint64, ndmin=2)
 
 
 def sorted_rows(a):

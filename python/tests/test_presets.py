@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 import isomesh
-from conftest import run_cli
+from conftest import cli_keys, run_cli
 
 # Edges coarse enough that the whole table runs in seconds; the rest is each preset's default.
 EDGES = {
@@ -37,6 +37,8 @@ def test_preset_matches_cli(tmp_path, name):
     keys = s.keys
     assert keys.shape[0] == s.simplex_count and keys.dtype == np.uint64
     assert len(np.unique(keys, axis=0)) == s.simplex_count
+    # The same simplices, by their exact names, in the same order.
+    assert np.array_equal(keys, cli_keys(tmp_path))
     topo = s.complex().topology
     assert topo["euler_characteristic"] == rep["euler_characteristic"]
     assert topo["cells"] == rep["cells"]
@@ -57,6 +59,7 @@ def test_preset_flags_match_cli(tmp_path):
     assert rep["triangulation"] == "freudenthal"
     assert s.simplex_count == rep["simplex_count"]
     assert np.array_equal(s.points, cli_points)
+    assert np.array_equal(s.keys, cli_keys(tmp_path))
 
 
 def test_keys_are_deterministic():

@@ -12,8 +12,8 @@ use isomesh::complex::{Complex, Topology};
 use isomesh::export::picture::Picture;
 use isomesh::export::safe::{check_target, FileId};
 use isomesh::export::{
-    write_atomic, write_mesh_as, write_sample, write_sample_to, Encoding, Mesh, MeshFormat,
-    Projection, SampleFormat,
+    write_atomic, write_mesh_as, write_sample, write_sample_to, Encoding, Mesh,
+    OutputFormat as Output, Projection, SampleFormat,
 };
 use isomesh::expr::{ImplicitFunction, Problem};
 use isomesh::gpu::{Gpu, GpuOracle, Precision};
@@ -228,40 +228,17 @@ fn parse_count<T: std::str::FromStr>(s: &str) -> std::result::Result<T, String> 
     })
 }
 
-/// What one --out path receives.
-enum Output {
-    Sample(SampleFormat),
-    Mesh(MeshFormat),
-}
-
+/// The format of `path`: `--format` when given, else its extension.
 fn output_kind(path: &std::path::Path, format: Option<&str>) -> Result<Output> {
-    let sample = |name: &str| match name.to_ascii_lowercase().as_str() {
-        "csv" => Some(SampleFormat::Csv),
-        "xyz" | "txt" => Some(SampleFormat::Xyz),
-        _ => None,
-    };
-    let by_name = |name: &str| {
-        sample(name)
-            .map(Output::Sample)
-            .or_else(|| MeshFormat::from_name(name).map(Output::Mesh))
-    };
     match format {
-        Some(f) => by_name(f).ok_or_else(|| {
+        Some(f) => Output::from_name(f).ok_or_else(|| {
             Error::Spec(format!(
-                "--format {}: use csv, xyz, ply, obj, off, stl, mesh, vtu or npz",
-                shown(f)
+                "--format {}: use {}",
+                shown(f),
+                isomesh::export::FORMAT_NAMES
             ))
         }),
-        None => path
-            .extension()
-            .and_then(|e| by_name(&e.to_string_lossy()))
-            .ok_or_else(|| {
-                Error::Io(format!(
-                    "{}: unknown output format; use .csv, .xyz, .txt, .ply, .obj, .off, .stl, \
-                     .mesh, .vtu or .npz, or --format",
-                    path.display()
-                ))
-            }),
+        None => Output::for_path(path, None),
     }
 }
 

@@ -53,7 +53,15 @@ pub enum SampleFormat {
     Csv,
     /// Space-separated, one point per line, no header (`.xyz`, `.txt`).
     Xyz,
+    /// The crossed simplices' keys (`.keys`): a `#` comment line, then one simplex per line,
+    /// its key's 64-bit words in decimal, in the sample's order (`numpy.loadtxt(path,
+    /// dtype=numpy.uint64)` reads it). Keys name simplices exactly, so two runs can be compared
+    /// or merged simplex by simplex.
+    Keys,
 }
+
+/// Every output format's name, as `--format` and `format=` take them.
+pub const FORMAT_NAMES: &str = "csv, xyz, keys, ply, obj, off, stl, mesh, vtu or npz";
 
 impl SampleFormat {
     /// The format for `path`'s extension.
@@ -64,8 +72,9 @@ impl SampleFormat {
         match ext.as_deref() {
             Some("csv") => Ok(SampleFormat::Csv),
             Some("xyz") | Some("txt") => Ok(SampleFormat::Xyz),
+            Some("keys") => Ok(SampleFormat::Keys),
             _ => Err(Error::Io(format!(
-                "{}: unknown output format; use .csv, .xyz or .txt",
+                "{}: unknown output format; use .csv, .xyz, .txt or .keys",
                 path.display()
             ))),
         }
@@ -87,6 +96,7 @@ impl OutputFormat {
         match name.to_ascii_lowercase().as_str() {
             "csv" => Some(OutputFormat::Sample(SampleFormat::Csv)),
             "xyz" | "txt" => Some(OutputFormat::Sample(SampleFormat::Xyz)),
+            "keys" => Some(OutputFormat::Sample(SampleFormat::Keys)),
             other => MeshFormat::from_name(other).map(OutputFormat::Mesh),
         }
     }
@@ -94,18 +104,15 @@ impl OutputFormat {
     /// The format for `path`: `format` when given, else the file extension.
     pub fn for_path(path: &Path, format: Option<&str>) -> Result<Self> {
         match format {
-            Some(f) => Self::from_name(f).ok_or_else(|| {
-                Error::Spec(format!(
-                    "format {f}: use csv, xyz, ply, obj, off, stl, mesh, vtu or npz"
-                ))
-            }),
+            Some(f) => Self::from_name(f)
+                .ok_or_else(|| Error::Spec(format!("format {f}: use {FORMAT_NAMES}"))),
             None => path
                 .extension()
                 .and_then(|e| Self::from_name(&e.to_string_lossy()))
                 .ok_or_else(|| {
                     Error::Io(format!(
-                        "{}: unknown output format; use .csv, .xyz, .txt, .ply, .obj, .off, \
-                         .stl, .mesh, .vtu or .npz",
+                        "{}: unknown output format; use .csv, .xyz, .txt, .keys, .ply, .obj, \
+                         .off, .stl, .mesh, .vtu or .npz",
                         path.display()
                     ))
                 }),
@@ -125,9 +132,26 @@ pub fn write_sample_to(
     format: SampleFormat,
 ) -> std::io::Result<()> {
     let d = sample.ambient_dim();
+    if format == SampleFormat::Keys {
+        let words = sample.codec().words();
+        writeln!(
+            w,
+            "# isomesh simplex keys: {words} 64-bit words per crossed simplex, in the sample's order"
+        )?;
+        for i in 0..sample.len() {
+            for (j, word) in sample.key(i).iter().enumerate() {
+                if j > 0 {
+                    w.write_all(b" ")?;
+                }
+                write!(w, "{word}")?;
+            }
+            writeln!(w)?;
+        }
+        return Ok(());
+    }
     let sep = match format {
         SampleFormat::Csv => ",",
-        SampleFormat::Xyz => " ",
+        SampleFormat::Xyz | SampleFormat::Keys => " ",
     };
     if format == SampleFormat::Csv {
         let header: Vec<String> = (1..=d).map(|i| format!("x{i}")).collect();
