@@ -523,8 +523,9 @@ impl Manifold {
         }
     }
 
-    /// Writes the sample (`.csv`, `.xyz`, `.txt`), its keys (`.keys`) or the mesh (`.ply`, `.obj`, `.off`, `.stl`,
-    /// `.mesh`, `.vtu`, `.npz`), chosen by the extension; the mesh builds the complex.
+    /// Writes the sample (`.csv`, `.xyz`, `.txt`), its keys (`.keys`) or the mesh (`.ply`,
+    /// `.obj`, `.off`, `.stl`, `.mesh`, `.vtu`, `.npz`), chosen by the extension; the mesh
+    /// builds the complex.
     pub fn write(&self, path: impl AsRef<Path>) -> Result<()> {
         self.write_with(path, &WriteOptions::default())
     }
