@@ -6,7 +6,7 @@ Runs A and B alternately (A B A B ...) and prints medians and ratios:
 - every tracing reference case, `isomesh trace --preset P --edge E --no-complex` (a fresh
   process: its report's `elapsed_s`, the trace itself, and the process's wall time) against
   `Problem.preset(P, edge=E).trace()` in this process (its report's `elapsed_s`, and the wall
-  time of the whole call: trace, suspect-crossing count, report); both give the same points
+  time of the whole call: trace, suspect-crossing count, report); both give the same keys
   in the same order, checked first;
 - the torus as an equation against the same f as a NumPy function: whole trace time, and the
   callable's points per second.
@@ -51,13 +51,14 @@ def run_cli(cli, args, tmp):
         return json.load(f)["elapsed_s"], wall
 
 
-def same_points(cli, preset, params, edge, tmp):
-    out = os.path.join(tmp, "p.csv")
+def same_keys(cli, preset, params, edge, tmp):
+    """Whether the CLI and the package find the same simplices (their keys), in the same order."""
+    out = os.path.join(tmp, "k.keys")
     subprocess.run([cli, *cli_args(preset, params, edge), "--no-complex", "--out", out],
                    check=True)
-    ref = np.loadtxt(out, delimiter=",", skiprows=1, ndmin=2)
+    ref = np.loadtxt(out, dtype=np.uint64, ndmin=2)
     s = isomesh.Problem.preset(preset, edge=edge, **params).trace()
-    return s.simplex_count, np.array_equal(ref, s.points)
+    return s.simplex_count, np.array_equal(ref, s.keys)
 
 
 def sorted_rows(a):
@@ -79,7 +80,7 @@ def main():
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
         for label, preset, params, edge in CASES:
-            n, same = same_points(a.cli, preset, params, edge, tmp)
+            n, same = same_keys(a.cli, preset, params, edge, tmp)
             p = isomesh.Problem.preset(preset, edge=edge, **params)
             args = cli_args(preset, params, edge)
             if a.threads:
@@ -96,12 +97,12 @@ def main():
             m = {k: statistics.median(v) for k, v in
                  (("cli_elapsed_s", cli_in), ("cli_process_s", cli_wall), ("python_s", py),
                   ("python_elapsed_s", py_in))}
-            rows.append({"case": label, "simplices": n, "same_points": same, **m,
+            rows.append({"case": label, "simplices": n, "same_keys": same, **m,
                          "elapsed_ratio": m["python_elapsed_s"] / m["cli_elapsed_s"],
                          "python_over_cli_elapsed": m["python_s"] / m["cli_elapsed_s"],
                          "python_over_cli_process": m["python_s"] / m["cli_process_s"]})
             r = rows[-1]
-            print(f"{label:20} {n:>8} same={same}  elapsed_s: cli {m['cli_elapsed_s']:.4f} "
+            print(f"{label:20} {n:>8} same keys={same}  elapsed_s: cli {m['cli_elapsed_s']:.4f} "
                   f"python {m['python_elapsed_s']:.4f} ratio {r['elapsed_ratio']:.3f}; "
                   f"whole call {m['python_s']:.4f} s against the process "
                   f"{m['cli_process_s']:.4f} s, ratio {r['python_over_cli_process']:.3f}",
