@@ -46,7 +46,7 @@ def test_preset_matches_cli(tmp_path, name):
     for key in ("simplex_count", "edge", "triangulation", "components", "euler_characteristic",
                 "manifold", "closed", "betti_mod2", "offset"):
         assert report[key] == rep[key], key
-    assert set(rep) - set(report) <= {"projection", "error"}
+    assert set(report) == set(rep)
 
 
 def test_preset_flags_match_cli(tmp_path):
