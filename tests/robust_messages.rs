@@ -211,3 +211,24 @@ fn a_closed_pipe_ends_output_quietly() {
         assert!(o.status.code().is_some(), "{args:?}: killed by a signal");
     }
 }
+
+#[test]
+fn check_prints_equations_in_the_spec_names() {
+    let dir = Scratch::new("check-names");
+    std::fs::write(
+        dir.path("n.toml"),
+        "variables = [\"u\", \"v\", \"w\"]\nequations = [\"u^2 + v^2 + w^2 - 1\"]\n\
+         boundary = [\"w - u\"]\nseeds = [[1, 0, 0]]\n",
+    )
+    .unwrap();
+    let o = isomesh(&dir.0, &["check", "n.toml"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let out = String::from_utf8(o.stdout).unwrap();
+    assert!(out.contains("variables: u, v, w"), "{out}");
+    assert!(
+        out.contains("f1 = ((((u^2) + (v^2)) + (w^2)) - 1.0)"),
+        "{out}"
+    );
+    assert!(out.contains("boundary: (w - u) >= 0"), "{out}");
+    assert!(!out.contains("x1"), "{out}");
+}

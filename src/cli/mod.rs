@@ -81,11 +81,16 @@ pub fn check(p: &Problem) -> Result<()> {
         shown(&p.name),
         d - k
     );
+    let names = sys.names();
+    say!("  variables: {}", shown(&names.join(", ")));
     for (i, e) in sys.equations().iter().enumerate() {
-        say!("  f{} = {}", i + 1, shown(&e.to_string()));
+        say!("  f{} = {}", i + 1, shown(&e.with_names(names).to_string()));
     }
     for g in sys.boundary() {
-        say!("  boundary: {} >= 0", shown(&g.to_string()));
+        say!(
+            "  boundary: {} >= 0",
+            shown(&g.with_names(names).to_string())
+        );
     }
     let t = p.triangulation.build(d)?;
     say!(

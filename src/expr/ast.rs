@@ -422,7 +422,37 @@ fn scaled(d: Expr, e: &Expr) -> Expr {
 impl fmt::Display for Expr {
     /// Fully parenthesised text in the language, which parses back to the same tree.
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        match self {
+        Named {
+            expr: self,
+            names: None,
+        }
+        .fmt(f)
+    }
+}
+
+impl Expr {
+    /// The expression as text with variable i called `names[i]` (x1, x2... past the list).
+    pub fn with_names<'a>(&'a self, names: &'a [String]) -> impl fmt::Display + 'a {
+        Named {
+            expr: self,
+            names: Some(names),
+        }
+    }
+}
+
+/// An expression printed with its variables' names.
+struct Named<'a> {
+    expr: &'a Expr,
+    names: Option<&'a [String]>,
+}
+
+impl fmt::Display for Named<'_> {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let sub = |expr| Named {
+            expr,
+            names: self.names,
+        };
+        match self.expr {
             Expr::Num(v) => {
                 if *v < 0.0 {
                     write!(f, "({v:?})")
@@ -430,20 +460,26 @@ impl fmt::Display for Expr {
                     write!(f, "{v:?}")
                 }
             }
-            Expr::Var(i) => write!(f, "x{}", i + 1),
-            Expr::Un(Op1::Neg, a) => write!(f, "(-{a})"),
-            Expr::Un(op, a) => write!(f, "{}({a})", op.name()),
-            Expr::PowI(a, n) => write!(f, "({a}^{n})"),
-            Expr::Bin(op, a, b) => match op {
-                Op2::Add => write!(f, "({a} + {b})"),
-                Op2::Sub => write!(f, "({a} - {b})"),
-                Op2::Mul => write!(f, "({a} * {b})"),
-                Op2::Div => write!(f, "({a} / {b})"),
-                Op2::Pow => write!(f, "pow({a}, {b})"),
-                Op2::Atan2 => write!(f, "atan2({a}, {b})"),
-                Op2::Min => write!(f, "min({a}, {b})"),
-                Op2::Max => write!(f, "max({a}, {b})"),
+            Expr::Var(i) => match self.names.and_then(|n| n.get(*i)) {
+                Some(name) => f.write_str(name),
+                None => write!(f, "x{}", i + 1),
             },
+            Expr::Un(Op1::Neg, a) => write!(f, "(-{})", sub(a)),
+            Expr::Un(op, a) => write!(f, "{}({})", op.name(), sub(a)),
+            Expr::PowI(a, n) => write!(f, "({}^{n})", sub(a)),
+            Expr::Bin(op, a, b) => {
+                let (a, b) = (sub(a), sub(b));
+                match op {
+                    Op2::Add => write!(f, "({a} + {b})"),
+                    Op2::Sub => write!(f, "({a} - {b})"),
+                    Op2::Mul => write!(f, "({a} * {b})"),
+                    Op2::Div => write!(f, "({a} / {b})"),
+                    Op2::Pow => write!(f, "pow({a}, {b})"),
+                    Op2::Atan2 => write!(f, "atan2({a}, {b})"),
+                    Op2::Min => write!(f, "min({a}, {b})"),
+                    Op2::Max => write!(f, "max({a}, {b})"),
+                }
+            }
         }
     }
 }
