@@ -79,6 +79,25 @@ thread_local! {
 /// Runs `f` with a heap limit of `limit` bytes for the work on this thread that checks
 /// [`over_limit`]: parsing equations, differentiating and compiling them. Such work stops
 /// with an error once the counted heap passes the limit, instead of growing without one.
+///
+/// ```
+/// use isomesh::expr::Spec;
+/// use isomesh::memory::{within, CountingAlloc};
+///
+/// #[global_allocator]
+/// static ALLOC: CountingAlloc = CountingAlloc;
+///
+/// fn main() {
+///     // A 20,000-term equation under a 1 MiB limit is refused, not parsed; under 1 GiB it
+///     // resolves.
+///     let long = vec!["x*y"; 20_000].join(" + ");
+///     let text = format!("ambient_dim = 3\nequations = [\"x^2 + y^2 + z^2 - 1 + ({long})\"]\n");
+///     let resolve = || Spec::from_toml(&text)?.resolve("long");
+///     let err = within(1 << 20, resolve).unwrap_err();
+///     assert!(err.to_string().contains("memory limit"), "{err}");
+///     assert!(within(1 << 30, resolve).is_ok());
+/// }
+/// ```
 pub fn within<T>(limit: u64, f: impl FnOnce() -> T) -> T {
     struct Restore(u64);
     impl Drop for Restore {

@@ -80,6 +80,16 @@ impl BackendInfo {
     }
 }
 
+/// ```
+/// let circle = isomesh::Mesher::preset("circle", &[])?.trace()?;
+/// let r = circle.report();
+/// assert!(r.complete);
+/// let json: serde_json::Value = serde_json::from_str(&r.to_json()).unwrap();
+/// assert_eq!(json["simplex_count"].as_u64(), Some(circle.len() as u64));
+/// assert_eq!(json["manifold_dim"], 1);
+/// # Ok::<(), isomesh::Error>(())
+/// ```
+///
 /// The JSON report of a trace or an exhaustive scan (`--report`).
 #[derive(Clone, Debug, Serialize)]
 pub struct Report {

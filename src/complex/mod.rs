@@ -80,6 +80,19 @@ pub struct ComplexStats {
 
 /// The polytopal cell complex M-hat: vertices with coordinates in R^d, and j-cells for
 /// j = 1..m, each listing its facets (the Hasse diagram).
+///
+/// ```
+/// let sphere = isomesh::Mesher::preset("sphere", &[])?.edge(0.2).trace()?;
+/// let c = sphere.complex()?;
+/// assert_eq!((c.ambient_dim(), c.dim()), (3, 2));
+/// // Every edge has two vertices; cells of a closed surface have no boundary.
+/// let edges = c.level(1);
+/// assert!((0..edges.len()).all(|i| edges.facets(i).len() == 2));
+/// assert_eq!(c.boundary_counts(), vec![0, 0]);
+/// let n = c.counts();
+/// assert_eq!(n[0] as i64 - n[1] as i64 + n[2] as i64, 2);
+/// # Ok::<(), isomesh::Error>(())
+/// ```
 #[derive(Clone, Debug)]
 pub struct Complex {
     d: usize,

@@ -22,6 +22,14 @@ pub struct Offender {
     pub cofaces: usize,
 }
 
+/// ```
+/// let torus = isomesh::Mesher::preset("torus", &[])?.edge(0.1).trace()?;
+/// let t = torus.topology()?;
+/// assert!(t.manifold && t.closed);
+/// assert_eq!(t.euler_characteristic, 0);
+/// assert_eq!(t.betti_mod2, Some(vec![1, 2, 1]));
+/// # Ok::<(), isomesh::Error>(())
+/// ```
 /// The topology report of a complex.
 #[derive(Clone, Debug, Serialize)]
 pub struct Topology {

@@ -37,6 +37,18 @@ enum NodeKey {
 }
 
 /// A compiled list of expressions in d variables.
+///
+/// ```
+/// use isomesh::cpu::program::Program;
+/// use isomesh::expr::{parse_expr, Scope};
+///
+/// let e = parse_expr("x^2 + y^2 - 1", &Scope::new(2))?;
+/// let p = Program::compile(std::slice::from_ref(&e), 2);
+/// let mut out = [0.0];
+/// p.eval(&[0.6, 0.8], &mut out);
+/// assert_eq!(out[0], e.eval(&[0.6, 0.8]));
+/// # Ok::<(), isomesh::expr::ParseError>(())
+/// ```
 #[derive(Clone, Debug)]
 pub struct Program {
     dim: usize,

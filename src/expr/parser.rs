@@ -716,6 +716,15 @@ pub fn parse_expr_at(text: &str, scope: &Scope, line: usize) -> Result<Expr, Par
     Ok(e)
 }
 
+/// ```
+/// use isomesh::expr::{parse_expr, ErrorKind, Scope};
+///
+/// let e = parse_expr("sin(x) * y", &Scope::new(2))?;
+/// assert_eq!(e.diff(0).to_string(), "(cos(x1) * x2)");
+/// let err = parse_expr("x +* y", &Scope::new(2)).unwrap_err();
+/// assert_eq!((err.kind, err.line, err.column), (ErrorKind::UnexpectedToken, 1, 4));
+/// # Ok::<(), isomesh::expr::ParseError>(())
+/// ```
 /// Parses one expression (line 1).
 pub fn parse_expr(text: &str, scope: &Scope) -> Result<Expr, ParseError> {
     parse_expr_at(text, scope, 1)

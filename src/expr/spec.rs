@@ -9,6 +9,24 @@ use super::system::{newton_project, EquationSystem};
 use crate::error::{check_finite_in, Error, Result};
 use crate::triangulation::{check_dim, Offset, Triangulation, TriangulationKind};
 
+/// ```
+/// use isomesh::expr::Spec;
+///
+/// let spec = Spec::from_toml(
+///     "variables = [\"u\", \"v\", \"w\"]\n\
+///      equations = [\"u^2 + v^2 + w^2 - r^2\"]\n\
+///      parameters = { r = 2.0 }\n\
+///      seeds = [[2, 0, 0]]\n",
+/// )?;
+/// let p = spec.resolve("ball")?;
+/// assert_eq!(p.dim(), 3);
+/// assert_eq!(p.system.names(), ["u", "v", "w"]);
+/// // A spec naming an unknown variable is an error that says where.
+/// let bad = Spec::from_toml("ambient_dim = 2\nequations = [\"x1 + q\"]\n")?;
+/// assert!(bad.resolve("bad").unwrap_err().to_string().contains("line 2"));
+/// # Ok::<(), isomesh::Error>(())
+/// ```
+///
 /// A spec file as written.
 #[derive(Clone, Debug, Default, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]

@@ -57,6 +57,21 @@ pub trait ImplicitFunction: Send + Sync {
     }
 }
 
+/// ```
+/// use isomesh::expr::{EquationSystem, ImplicitFunction};
+///
+/// // The flat torus in R^4: two equations, f: R^4 -> R^2.
+/// let f = EquationSystem::parse_simple(4, &["x1^2 + x2^2 - 1", "x3^2 + x4^2 - 1"])?;
+/// assert_eq!((f.ambient_dim(), f.codim()), (4, 2));
+/// let mut v = [0.0; 4];
+/// f.eval_batch(&[1.0, 0.0, 0.0, 2.0, 0.0, 1.0, 1.0, 0.0], &mut v);
+/// assert_eq!(v, [0.0, 3.0, 0.0, 0.0]);
+/// // Its Jacobian comes from exact derivatives.
+/// let mut j = [0.0; 8];
+/// f.jacobian(&[1.0, 0.0, 0.0, 2.0], &mut j);
+/// assert_eq!(j, [2.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 4.0]);
+/// # Ok::<(), isomesh::Error>(())
+/// ```
 /// A system of equations in the language, compiled for batch evaluation.
 #[derive(Clone, Debug)]
 pub struct EquationSystem {
@@ -280,6 +295,17 @@ thread_local! {
 /// The signature of a closure usable as f: writes f(x) (k values) for one point x.
 pub type PointFn = dyn Fn(&[f64], &mut [f64]) + Send + Sync;
 
+/// ```
+/// use isomesh::expr::{ClosureFunction, ImplicitFunction};
+///
+/// let sphere = ClosureFunction::new(3, 1, |x, out| {
+///     out[0] = x.iter().map(|v| v * v).sum::<f64>() - 1.0;
+/// })?;
+/// let mut v = [0.0; 2];
+/// sphere.eval_batch(&[1.0, 0.0, 0.0, 0.0, 2.0, 0.0], &mut v);
+/// assert_eq!(v, [0.0, 3.0]);
+/// # Ok::<(), isomesh::Error>(())
+/// ```
 /// f given as a Rust closure (CPU backend only: the GPU needs the equation language).
 pub struct ClosureFunction {
     d: usize,

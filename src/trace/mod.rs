@@ -203,6 +203,20 @@ pub struct TraceStats {
 /// simplices, and a point is the intersection test run again on them (the same f64
 /// arithmetic as the trace, so the same bits, whichever backend traced). That is 8 d bytes
 /// per simplex less to hold; [`Sample::points`] computes them all when needed.
+///
+/// ```
+/// use isomesh::Mesher;
+///
+/// let circle = Mesher::preset("circle", &[])?.trace()?;
+/// let s = circle.sample();
+/// assert_eq!((s.ambient_dim(), s.codim()), (2, 1));
+/// // Each entry is a crossed 1-simplex, named by its key, and the point where M crosses it.
+/// let (simplex, point) = s.iter().next().unwrap();
+/// assert_eq!(simplex.dim(), 1);
+/// assert!((point[0].hypot(point[1]) - 1.0).abs() < 1e-2);
+/// assert_eq!(s.key(0).len(), s.codec().words());
+/// # Ok::<(), isomesh::Error>(())
+/// ```
 #[derive(Clone, Debug)]
 pub struct Sample {
     codec: KeyCodec,

@@ -70,6 +70,20 @@ enum Linear {
 
 /// A triangulation of R^d: the permutahedral combinatorics of [`Simplex`] plus the geometry
 /// that places lattice points in R^d. Never stored: every simplex is computed on demand.
+///
+/// ```
+/// use isomesh::triangulation::Triangulation;
+///
+/// let t = Triangulation::coxeter(3).edge(0.1).build()?;
+/// // Point location: the 3-simplex holding a point, then its faces and cofaces, computed
+/// // from its permutahedral representation.
+/// let s = t.locate(&[0.31, -0.2, 0.05])?;
+/// assert_eq!(s.dim(), 3);
+/// assert_eq!(s.facets().len(), 4);
+/// let edge = &s.faces(1)?[0];
+/// assert!(edge.cofaces(3)?.contains(&s));
+/// # Ok::<(), isomesh::Error>(())
+/// ```
 #[derive(Clone, Debug)]
 pub struct Triangulation {
     d: usize,

@@ -20,6 +20,17 @@ pub const MAX_DIM: usize = 63;
 const MAX_PARTS: usize = MAX_DIM + 1;
 
 /// A simplex of the Freudenthal-Kuhn triangulation of Z^d, in canonical permutahedral form.
+///
+/// ```
+/// use isomesh::triangulation::Simplex;
+///
+/// // A vertex of Z^3 and the 3-simplices around it: (d+1)! = 24 in Freudenthal-Kuhn.
+/// let v = Simplex::vertex(&[1, 2, 3])?;
+/// let around = v.cofaces(3)?;
+/// assert_eq!(around.len(), 24);
+/// assert!(around.iter().all(|s| s.vertices().contains(&vec![1, 2, 3])));
+/// # Ok::<(), isomesh::Error>(())
+/// ```
 #[derive(Clone)]
 pub struct Simplex {
     d: u8,
