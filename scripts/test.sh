@@ -5,6 +5,9 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 export CARGO_TARGET_DIR="${CARGO_TARGET_DIR:-$PWD/target}"
+# No display: keep Mesa's device-select layer from looking for one (and saying so) in the
+# Python tests too; cargo sets it for its own test binaries (.cargo/config.toml).
+export NODEVICE_SELECT=1
 
 cargo test --locked --workspace
 
@@ -13,8 +16,9 @@ rm -rf "$VENV"
 python3 -m venv "$VENV"
 "$VENV/bin/python" -m pip install --quiet --upgrade pip
 "$VENV/bin/python" -m pip install --quiet pytest numpy meshio trimesh
-# The wheel is built with the dev profile (opt-level 2 like the tests): the isomesh crate and every dependency that the
-# Rust tests compiled are reused, only pyo3, numpy and the bindings compile here.
+# The wheel is built with the dev profile (opt-level 2 like the tests): the isomesh crate and
+# every dependency that the Rust tests compiled are reused; only pyo3, numpy and the bindings
+# compile here.
 MATURIN_PEP517_ARGS="--profile dev --locked" "$VENV/bin/python" -m pip install --quiet ./python
 export ISOMESH_CLI="$CARGO_TARGET_DIR/debug/isomesh"
 cd python/tests

@@ -2,27 +2,20 @@
 //! evaluate, print and drop without exhausting the stack, in time linear in their size; a
 //! cap on size and depth gives a clear error; positions in spec files are the file's.
 
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+mod common;
+
+use std::process::Output;
 use std::time::Instant;
+
+use common::{isomesh, Scratch};
 
 use isomesh::cpu::program::Program;
 use isomesh::expr::{parse_expr, ErrorKind, Expr, Scope};
 use proptest::prelude::*;
 
-fn isomesh(dir: &Path, args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_isomesh"))
-        .args(args)
-        .current_dir(dir)
-        .output()
-        .expect("the isomesh binary runs")
-}
-
-fn scratch(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("isomesh-rexpr-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
+/// A scratch directory of this test file's, removed when dropped.
+fn scratch(name: &str) -> Scratch {
+    Scratch::new(&format!("rexpr-{name}"))
 }
 
 fn text(o: &Output) -> String {

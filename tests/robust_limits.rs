@@ -2,22 +2,16 @@
 //! cap, unbounded manifolds with no box, empty results, singular seeds, and messages that
 //! name what to change.
 
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+mod common;
 
-fn isomesh(dir: &Path, args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_isomesh"))
-        .args(args)
-        .current_dir(dir)
-        .output()
-        .expect("the isomesh binary runs")
-}
+use std::path::Path;
+use std::process::Output;
 
-fn scratch(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("isomesh-rlim-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
+use common::{isomesh, Scratch};
+
+/// A scratch directory of this test file's, removed when dropped.
+fn scratch(name: &str) -> Scratch {
+    Scratch::new(&format!("rlim-{name}"))
 }
 
 fn text(o: &Output) -> String {
@@ -35,7 +29,7 @@ fn report(dir: &Path) -> serde_json::Value {
 
 /// Runs a trace with `args` plus `--report r.json` in a fresh directory; the output and the
 /// report.
-fn trace(name: &str, spec: Option<&str>, args: &[&str]) -> (Output, serde_json::Value, PathBuf) {
+fn trace(name: &str, spec: Option<&str>, args: &[&str]) -> (Output, serde_json::Value, Scratch) {
     let dir = scratch(name);
     let mut all = vec!["trace"];
     if let Some(s) = spec {
