@@ -6,8 +6,8 @@
 use std::hint::black_box;
 use std::time::Instant;
 
-use isomesh::cpu::program::Scratch;
 use isomesh::expr::preset;
+use isomesh::expr::program::Scratch;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 

@@ -1,7 +1,7 @@
 //! The equation language: presets against hand-written Rust, derivatives, WGSL validation,
 //! error kinds and positions, spec files, combinators.
 
-use isomesh::cpu::program::{Program, Scratch};
+use isomesh::expr::program::{Program, Scratch};
 use isomesh::expr::{
     newton_project, parse_expr, parse_system, preset, preset_names, ClosureFunction,
     EquationSystem, ErrorKind, Expr, ImplicitFunction, Op1, Op2, Scope, Spec,
@@ -222,7 +222,7 @@ fn random_expressions_emit_valid_wgsl_and_round_trip() {
         #[cfg(feature = "gpu")]
         {
             let beyond_f32 = prog.nodes().iter().any(
-                |n| matches!(n, isomesh::cpu::program::Node::Const(c) if !(*c as f32).is_finite()),
+                |n| matches!(n, isomesh::expr::program::Node::Const(c) if !(*c as f32).is_finite()),
             );
             for prec in [Precision::F32, Precision::F64] {
                 match eval_shader(&prog, prec) {

@@ -9,7 +9,7 @@ use std::time::Instant;
 
 use common::{isomesh, Scratch};
 
-use isomesh::cpu::program::Program;
+use isomesh::expr::program::Program;
 use isomesh::expr::{parse_expr, ErrorKind, Expr, Scope};
 use proptest::prelude::*;
 

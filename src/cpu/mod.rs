@@ -1,5 +1,6 @@
-//! The CPU side: batch evaluation of compiled expressions, the intersection test, the
-//! door-in/door-out pivot of tracing, and the twins of the GPU's vertex and scan shaders.
+//! The CPU side: the intersection test, the door-in/door-out pivot of tracing, and the twins
+//! of the GPU's vertex and scan shaders (the expressions they evaluate are compiled in
+//! [`crate::expr::program`]).
 
 /// Evaluates `$body` with `$m` bound to `$n`, in one arm per n = 2..=9 and a general arm
 /// for the rest: code inlined into an arm sees n as a constant, so its loops unroll and its
@@ -21,6 +22,8 @@ pub mod decide;
 #[cfg(test)]
 mod decide_adversarial;
 pub mod pivot;
-pub mod program;
+/// The expression compiler, at its old path: it lives in [`crate::expr::program`].
+#[doc(hidden)]
+pub use crate::expr::program;
 pub mod scan;
 pub mod vertices;

@@ -1,7 +1,7 @@
 //! The CPU twin of the GPU's vertex shader (`shaders/eval_vertices.wgsl`): lattice vertices
 //! to R^d through a dense affine map, then f, with the same operations in the same order.
 
-use super::program::{Program, Scratch};
+use crate::expr::program::{Program, Scratch};
 
 /// f at lattice vertices: `lattice` holds n rows of d integer coordinates, `a` (d x d,
 /// row-major) and `b` the affine map x = A u + b, `out` gets n rows of `prog.outputs()`.

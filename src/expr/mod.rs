@@ -1,10 +1,11 @@
 //! The equation language: one text form for f, parsed once into trees that evaluate on the
-//! CPU in batches ([`crate::cpu::program`]), differentiate symbolically, and emit WGSL
+//! CPU in batches ([`program`]), differentiate symbolically, and emit WGSL
 //! ([`crate::gpu::wgsl`]); spec files and presets are written in it.
 
 pub mod ast;
 pub mod parser;
 pub mod presets;
+pub mod program;
 pub mod spec;
 pub mod system;
 

@@ -3,9 +3,9 @@
 
 use std::fmt::Write;
 
-use crate::cpu::program::{Node, Program};
 use crate::error::{Error, Result};
 use crate::expr::ast::{Op1, Op2};
+use crate::expr::program::{Node, Program};
 
 /// The batch-evaluation compute shader; the emitted prelude supplies `real`, `DIM`, `OUTS`
 /// and `isomesh_f`.

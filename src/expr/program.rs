@@ -39,7 +39,7 @@ enum NodeKey {
 /// A compiled list of expressions in d variables.
 ///
 /// ```
-/// use isomesh::cpu::program::Program;
+/// use isomesh::expr::program::Program;
 /// use isomesh::expr::{parse_expr, Scope};
 ///
 /// let e = parse_expr("x^2 + y^2 - 1", &Scope::new(2))?;
