@@ -225,9 +225,11 @@ pub fn write_mesh_as(path: &Path, mesh: &Mesh, format: MeshFormat, enc: Encoding
     })
 }
 
-fn ply(w: &mut impl Write, mesh: &Mesh) -> io::Result<()> {
+/// The PLY header for `format` (`ascii` or `binary_little_endian`): vertices as doubles, then
+/// edges (a curve) or polygons; whether the mesh is a curve.
+fn ply_header(w: &mut impl Write, mesh: &Mesh, format: &str) -> io::Result<bool> {
     let curve = mesh.complex.dim() == 1;
-    writeln!(w, "ply\nformat ascii 1.0\ncomment {}", mesh.header())?;
+    writeln!(w, "ply\nformat {format} 1.0\ncomment {}", mesh.header())?;
     writeln!(w, "element vertex {}", mesh.vertex_count())?;
     writeln!(w, "property double x\nproperty double y\nproperty double z")?;
     if curve {
@@ -242,6 +244,11 @@ fn ply(w: &mut impl Write, mesh: &Mesh) -> io::Result<()> {
         writeln!(w, "property list uchar int vertex_indices")?;
     }
     writeln!(w, "end_header")?;
+    Ok(curve)
+}
+
+fn ply(w: &mut impl Write, mesh: &Mesh) -> io::Result<()> {
+    let curve = ply_header(w, mesh, "ascii")?;
     xyz_rows(w, mesh)?;
     if curve {
         for e in mesh.edges() {
@@ -256,26 +263,7 @@ fn ply(w: &mut impl Write, mesh: &Mesh) -> io::Result<()> {
 /// PLY `binary_little_endian`: the same elements as [`ply`], vertices as doubles, indices as
 /// int32, polygon sizes as uchar.
 fn ply_binary(w: &mut impl Write, mesh: &Mesh) -> io::Result<()> {
-    let curve = mesh.complex.dim() == 1;
-    writeln!(
-        w,
-        "ply\nformat binary_little_endian 1.0\ncomment {}",
-        mesh.header()
-    )?;
-    writeln!(w, "element vertex {}", mesh.vertex_count())?;
-    writeln!(w, "property double x\nproperty double y\nproperty double z")?;
-    if curve {
-        writeln!(w, "element edge {}", mesh.complex.level(1).len())?;
-        writeln!(w, "property int vertex1\nproperty int vertex2")?;
-    } else {
-        writeln!(
-            w,
-            "element face {}",
-            mesh.surface.as_ref().map_or(0, Surface::len)
-        )?;
-        writeln!(w, "property list uchar int vertex_indices")?;
-    }
-    writeln!(w, "end_header")?;
+    let curve = ply_header(w, mesh, "binary_little_endian")?;
     for x in &mesh.xyz {
         w.write_all(&x.to_le_bytes())?;
     }
