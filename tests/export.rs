@@ -265,6 +265,15 @@ fn surface_exports_read_back_with_the_same_counts() {
                 assert!(floats(vtu_array(&s, "types")).iter().all(|&t| t == 7.0));
             }
             MeshFormat::Npz => {
+                // Every member deflated, and the index arrays smaller for it.
+                let mut z = zip::ZipArchive::new(std::fs::File::open(&path).unwrap()).unwrap();
+                for i in 0..z.len() {
+                    let f = z.by_index(i).unwrap();
+                    assert_eq!(f.compression(), zip::CompressionMethod::Deflated);
+                    if f.name().starts_with("cells") {
+                        assert!(f.compressed_size() < f.size(), "{}", f.name());
+                    }
+                }
                 let e = npz_entries(&path);
                 let (shape, v) = read_npy::<f64>(&e["vertices"], "<f8");
                 assert_eq!(shape, vec![nv, 3]);

@@ -603,6 +603,11 @@ fn npy<T: npyz::AutoSerialize>(
     Ok(buf)
 }
 
+/// Deflate level of the `.npz` members. On the 3-torus (1.3 M cells) the archive is 240 MB
+/// stored, 134 MB at level 1, 95 MB at 3 and 94.7 MB at 6; 3 costs about a second more than
+/// storing, 6 about two.
+const NPZ_DEFLATE_LEVEL: i64 = 3;
+
 fn npz<W: Write + io::Seek>(w: &mut W, mesh: &Mesh) -> io::Result<()> {
     let c = mesh.complex;
     let (n, d) = (mesh.vertex_count() as u64, c.ambient_dim() as u64);
@@ -684,7 +689,8 @@ fn npz<W: Write + io::Seek>(w: &mut W, mesh: &Mesh) -> io::Result<()> {
     let mut zip = zip::ZipWriter::new(w);
     for (name, bytes) in arrays {
         let options = zip::write::SimpleFileOptions::default()
-            .compression_method(zip::CompressionMethod::Stored)
+            .compression_method(zip::CompressionMethod::Deflated)
+            .compression_level(Some(NPZ_DEFLATE_LEVEL))
             .large_file(bytes.len() as u64 >= u32::MAX as u64);
         zip.start_file(format!("{name}.npy"), options)
             .map_err(io::Error::other)?;
