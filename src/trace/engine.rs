@@ -45,10 +45,10 @@ impl<'a, const W: usize> Engine<'a, W> {
     pub fn new(ctx: TraceContext<'a>) -> Self {
         Engine {
             ctx,
-            s: Table::new(),
-            rim: Table::new(),
+            s: Table::fixed(),
+            rim: Table::fixed(),
             rim_points: Vec::new(),
-            verts: Table::new(),
+            verts: Table::fixed(),
             values: Vec::new(),
             stats: TraceStats::default(),
             origins: Vec::new(),
@@ -57,10 +57,10 @@ impl<'a, const W: usize> Engine<'a, W> {
 
     /// Bytes held by the trace's containers.
     pub fn bytes(&self) -> usize {
-        self.s.bytes()
-            + self.rim.bytes()
+        self.s.memory_bytes()
+            + self.rim.memory_bytes()
             + self.rim_points.capacity() * 8
-            + self.verts.bytes()
+            + self.verts.memory_bytes()
             + self.values.capacity() * 8
     }
 
@@ -82,7 +82,7 @@ impl<'a, const W: usize> Engine<'a, W> {
             };
         // After the trace, the sample copies the vertex set, and its check for poles holds
         // two values per simplex and equation: room for them is kept.
-        let after = self.verts.bytes() + 2 * (self.s.len() + new_keys) * self.ctx.k * 8;
+        let after = self.verts.memory_bytes() + 2 * (self.s.len() + new_keys) * self.ctx.k * 8;
         let need = crate::memory::in_use(self.bytes()) + (next_bytes + growth + after) as u64;
         if need > self.ctx.max_memory {
             self.stats.stopped = Some(StopReason::MemoryLimit {
@@ -277,7 +277,7 @@ impl<'a, const W: usize> Engine<'a, W> {
                             return;
                         }
                         row[i] = match self.verts.find(&vk) {
-                            Some(j) => j,
+                            Some(j) => j as u32,
                             None => {
                                 miss.push(vk);
                                 MISSING

@@ -40,7 +40,7 @@ pub(crate) fn scan<const W: usize>(
                 stopped: Some(StopReason::Interrupted),
                 ..TraceStats::default()
             };
-            return Ok((Table::new(), stats));
+            return Ok((Table::fixed(), stats));
         }
         g => g?,
     };
@@ -81,7 +81,7 @@ pub(crate) fn scan<const W: usize>(
         batch = ahead.transpose()?;
     }
     found.par_sort_unstable();
-    let mut table = Table::new();
+    let mut table = Table::fixed();
     for key in &found {
         table.insert(key)?;
     }
@@ -178,8 +178,8 @@ pub(crate) fn count_components<const W: usize>(
                 tau.for_each_facet(|f| {
                     if codec.encode(f, &mut key).is_ok() {
                         if let Some(j) = s.find(&key) {
-                            if j as usize > i {
-                                out.push((i as u32, j));
+                            if j > i {
+                                out.push((i as u32, j as u32));
                             }
                         }
                     }

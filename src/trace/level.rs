@@ -306,7 +306,7 @@ impl<const W: usize> Work<'_, '_, W> {
                 }
                 e.ctx.codec.encode_vertex(&self.v[..d], &mut self.key)?;
                 match e.verts.find(&self.key) {
-                    Some(a) => a,
+                    Some(a) => a as u32,
                     None => {
                         self.out.deferred.push(Deferred {
                             from,
@@ -507,7 +507,7 @@ impl<const W: usize> Engine<'_, W> {
         self.add_vertices(&mut keys)?;
         let with_apex: Vec<(Deferred<W>, u32)> = deferred
             .iter()
-            .map(|t| (*t, self.verts.find(&t.vertex).expect("just added")))
+            .map(|t| (*t, self.verts.find(&t.vertex).expect("just added") as u32))
             .collect();
         let starts: Vec<usize> = (0..with_apex.len())
             .filter(|&i| i == 0 || with_apex[i - 1].0.from != with_apex[i].0.from)
@@ -528,7 +528,7 @@ impl<const W: usize> Engine<'_, W> {
     /// Whether `key` is neither in S nor in the rim.
     #[inline]
     fn is_new(&self, key: &Key<W>) -> bool {
-        self.s.find(key).is_none() && (self.rim.len() == 0 || self.rim.find(key).is_none())
+        self.s.find(key).is_none() && (self.rim.is_empty() || self.rim.find(key).is_none())
     }
 
     /// Pushes onto `out` every facet of `tau` (cofacet `via` of frontier simplex `from`,

@@ -551,7 +551,7 @@ fn sample_from<const W: usize>(
     let mut vertices = KeySet::new(words);
     vertices.reserve(verts.len() / W);
     for v in verts.chunks_exact(W) {
-        vertices.insert(&v[..words])?;
+        vertices.insert_new(&v[..words])?;
     }
     let mut keys = engine.s.into_words();
     keys.shrink_to_fit();

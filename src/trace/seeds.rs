@@ -79,7 +79,7 @@ impl<const W: usize> Engine<'_, W> {
                     }
                     let (i, new) = self.s.insert(&key)?;
                     if new {
-                        self.run(i as usize..i as usize + 1)?;
+                        self.run(i..i + 1)?;
                         traced += 1;
                     }
                 }

@@ -4,11 +4,13 @@
 
 mod geometry;
 mod key;
+mod key_set;
 mod simplex;
 
 pub use geometry::{
     random_rotation, Offset, Triangulation, TriangulationBuilder, TriangulationKind,
 };
-pub use key::{KeyCodec, KeySet};
+pub use key::KeyCodec;
+pub use key_set::{KeySet, Width, Words};
 pub(crate) use simplex::check_dim;
 pub use simplex::{Simplex, MAX_DIM};
