@@ -4,7 +4,7 @@ use crate::expr::ParseError;
 use crate::triangulation::MAX_DIM;
 
 /// Everything that can go wrong in isomesh, as one typed error.
-#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[derive(Debug, thiserror::Error)]
 pub enum Error {
     /// An ambient dimension outside 1..=MAX_DIM.
     #[error("ambient dimension {0} is not supported: isomesh handles 1 to {MAX_DIM}")]
@@ -67,9 +67,42 @@ pub enum Error {
         /// The limit, bytes.
         limit: u64,
     },
-    /// Input/output failure, with the path involved.
+    /// An input/output failure: what was read or written (a path, "standard output") and
+    /// the system's error, kept as the source.
+    #[error("{context}: {source}")]
+    Io {
+        /// The path or stream involved, with the flag that named it where there is one.
+        context: String,
+        /// The system's error.
+        #[source]
+        source: std::io::Error,
+    },
+    /// An output that cannot be written as asked: an unknown format, a format that cannot
+    /// hold the manifold, a target that is not a regular file, a picture size out of range.
     #[error("{0}")]
-    Io(String),
+    Output(String),
+}
+
+impl Error {
+    /// An [`Error::Io`] on `context` (a path, "standard output"...).
+    pub fn io(context: impl std::fmt::Display, source: std::io::Error) -> Error {
+        Error::Io {
+            context: context.to_string(),
+            source,
+        }
+    }
+
+    /// The same error, its path or message prefixed by the flag that named it ("--out").
+    pub fn for_flag(self, flag: &str) -> Error {
+        match self {
+            Error::Io { context, source } => Error::Io {
+                context: format!("{flag} {context}"),
+                source,
+            },
+            Error::Output(m) => Error::Output(format!("{flag} {m}")),
+            e => e,
+        }
+    }
 }
 
 /// Shorthand for results carrying [`Error`].

@@ -576,3 +576,35 @@ fn binary_ply_and_vtu_read_back_as_their_ascii_forms() {
     }
     std::fs::remove_dir_all(out).unwrap();
 }
+
+#[test]
+fn io_errors_keep_the_system_error_as_their_source() {
+    use std::error::Error as _;
+    let out = dir("io-source");
+    let p = problem("circle", &[]);
+    let c = build(&p);
+    let mesh = Mesh::new(&c, Some(&p.system), &Projection::Auto, "circle");
+    // The parent of the target is a regular file: the OS refuses, and says why.
+    let file = out.join("plain");
+    std::fs::write(&file, "x").unwrap();
+    let e = write_mesh(&file.join("c.ply"), &mesh, MeshFormat::Ply).unwrap_err();
+    assert!(matches!(e, isomesh::Error::Io { .. }), "{e:?}");
+    let source = e.source().expect("a source");
+    let io = source
+        .downcast_ref::<std::io::Error>()
+        .expect("an io::Error");
+    assert!(e.to_string().ends_with(&io.to_string()), "{e}");
+    assert!(e.to_string().contains("plain"), "{e}");
+    // A refused target is not a system error: it has no source.
+    let e = write_mesh(&out, &mesh, MeshFormat::Ply).unwrap_err();
+    assert!(matches!(e, isomesh::Error::Output(_)), "{e:?}");
+    assert!(e.source().is_none());
+    let e = isomesh::expr::Spec::from_file(&out.join("absent.toml")).unwrap_err();
+    let io = e
+        .source()
+        .unwrap()
+        .downcast_ref::<std::io::Error>()
+        .unwrap();
+    assert_eq!(io.kind(), std::io::ErrorKind::NotFound);
+    std::fs::remove_dir_all(out).unwrap();
+}

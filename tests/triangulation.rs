@@ -602,11 +602,14 @@ fn custom_matrix_reproduces_a_given_triangulation() {
 
 #[test]
 fn bad_input_gets_typed_errors() {
-    assert_eq!(Simplex::vertex(&[]).unwrap_err(), Error::Dimension(0));
-    assert_eq!(
+    assert!(matches!(
+        Simplex::vertex(&[]).unwrap_err(),
+        Error::Dimension(0)
+    ));
+    assert!(matches!(
         Simplex::vertex(&vec![0; MAX_DIM + 1]).unwrap_err(),
-        Error::Dimension(MAX_DIM + 1)
-    );
+        Error::Dimension(d) if d == MAX_DIM + 1
+    ));
     assert!(Simplex::vertex(&vec![0; MAX_DIM]).is_ok());
     assert!(matches!(
         Triangulation::coxeter(0).build(),

@@ -5,15 +5,26 @@ mod callable;
 mod problem;
 mod result;
 
-use pyo3::exceptions::{PyOSError, PyRuntimeError, PyValueError};
+use pyo3::exceptions::{
+    PyFileNotFoundError, PyOSError, PyPermissionError, PyRuntimeError, PyValueError,
+};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
+use std::io::ErrorKind;
 
 /// An isomesh error as the Python exception a caller expects, with the CLI's message.
 pub(crate) fn to_py(e: isomesh::Error) -> PyErr {
     use isomesh::Error as E;
     match e {
-        E::Io(m) => PyOSError::new_err(m),
+        E::Io { ref source, .. } => {
+            let message = e.to_string();
+            match source.kind() {
+                ErrorKind::NotFound => PyFileNotFoundError::new_err(message),
+                ErrorKind::PermissionDenied => PyPermissionError::new_err(message),
+                _ => PyOSError::new_err(message),
+            }
+        }
+        E::Output(m) => PyOSError::new_err(m),
         e @ (E::Gpu(_) | E::Wgsl(_)) => PyRuntimeError::new_err(e.to_string()),
         e => PyValueError::new_err(e.to_string()),
     }

@@ -39,7 +39,7 @@ def test_bad_arguments():
         isomesh.Problem(function=lambda x: x[:, :1])
     with pytest.raises(TypeError, match="callable"):
         isomesh.Problem(function=3, ambient_dim=3, codim=1)
-    with pytest.raises(OSError, match="nowhere.toml"):
+    with pytest.raises(FileNotFoundError, match="nowhere.toml"):
         isomesh.Problem.from_toml("/nowhere.toml")
 
 

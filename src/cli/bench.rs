@@ -97,7 +97,12 @@ pub fn run(args: &BenchArgs) -> Result<()> {
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(threads.max(1))
         .build()
-        .map_err(|e| Error::Io(format!("cannot start {threads} threads: {e}")))?;
+        .map_err(|e| {
+            Error::io(
+                format!("cannot start {threads} threads"),
+                std::io::Error::other(e),
+            )
+        })?;
     pool.install(|| run_in_pool(args, threads.max(1)))
 }
 

@@ -289,7 +289,12 @@ pub fn run(args: &TraceArgs) -> Result<()> {
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(threads)
         .build()
-        .map_err(|e| Error::Io(format!("cannot start {threads} threads: {e}")))?;
+        .map_err(|e| {
+            Error::io(
+                format!("cannot start {threads} threads"),
+                std::io::Error::other(e),
+            )
+        })?;
     pool.install(|| run_in_pool(&problem, args, &plan, threads))
 }
 
@@ -325,7 +330,7 @@ fn plan_outputs(args: &TraceArgs, p: &Problem) -> Result<Plan> {
     for path in &args.out {
         let stdout = path.as_os_str() == "-";
         if !stdout {
-            check_target(path).map_err(|e| Error::Io(format!("--out {e}")))?;
+            check_target(path).map_err(|e| e.for_flag("--out"))?;
         }
         let kind = match (stdout, args.format.as_deref()) {
             (true, None) => Output::Sample(SampleFormat::Csv),
@@ -395,7 +400,7 @@ fn plan_outputs(args: &TraceArgs, p: &Problem) -> Result<Plan> {
                 .map(|p| ("--report", p.as_path())),
         );
     for (flag, path) in named {
-        check_target(path).map_err(|e| Error::Io(format!("{flag} {e}")))?;
+        check_target(path).map_err(|e| e.for_flag(flag))?;
         let id = FileId::of(path)?;
         if let Some((other, other_path, _)) = files.iter().find(|f| f.2.same(&id)) {
             return Err(Error::Spec(format!(
@@ -582,7 +587,7 @@ fn run_in_pool(p: &Problem, args: &TraceArgs, plan: &Plan, threads: usize) -> Re
                 let mut out = std::io::stdout().lock();
                 write_sample_to(&mut out, &sample, format)
                     .and_then(|()| out.flush())
-                    .map_err(|e| Error::Io(format!("standard output: {e}")))?;
+                    .map_err(|e| Error::io("standard output", e))?;
             } else {
                 phase(&format!("writing {}", shown(&o.path.display().to_string())));
                 write_sample(&o.path, &sample, format)?;
@@ -700,7 +705,7 @@ fn run_in_pool(p: &Problem, args: &TraceArgs, plan: &Plan, threads: usize) -> Re
             let mut out = std::io::stdout().lock();
             writeln!(out, "{}", report.to_json())
                 .and_then(|()| out.flush())
-                .map_err(|e| Error::Io(format!("standard output: {e}")))?;
+                .map_err(|e| Error::io("standard output", e))?;
         } else {
             phase(&format!("writing {}", shown(&path.display().to_string())));
             write_atomic(path, |w| writeln!(w, "{}", report.to_json()))?;

@@ -181,7 +181,7 @@ impl MeshFormat {
         if self.holds(m) {
             return Ok(());
         }
-        Err(Error::Io(format!(
+        Err(Error::Output(format!(
             "{}: {self:?} cannot hold a {m}-manifold; use {}",
             path.display(),
             match m {

@@ -25,7 +25,7 @@ pub fn write_atomic(
     path: &Path,
     body: impl FnOnce(&mut BufWriter<File>) -> std::io::Result<()>,
 ) -> Result<()> {
-    let io = |e: std::io::Error| Error::Io(format!("{}: {e}", path.display()));
+    let io = |e: std::io::Error| Error::io(path.display(), e);
     safe::check_target(path)?;
     if let Some(dir) = path.parent().filter(|p| !p.as_os_str().is_empty()) {
         std::fs::create_dir_all(dir).map_err(io)?;
@@ -73,7 +73,7 @@ impl SampleFormat {
             Some("csv") => Ok(SampleFormat::Csv),
             Some("xyz") | Some("txt") => Ok(SampleFormat::Xyz),
             Some("keys") => Ok(SampleFormat::Keys),
-            _ => Err(Error::Io(format!(
+            _ => Err(Error::Output(format!(
                 "{}: unknown output format; use .csv, .xyz, .txt or .keys",
                 path.display()
             ))),
@@ -110,7 +110,7 @@ impl OutputFormat {
                 .extension()
                 .and_then(|e| Self::from_name(&e.to_string_lossy()))
                 .ok_or_else(|| {
-                    Error::Io(format!(
+                    Error::Output(format!(
                         "{}: unknown output format; use .csv, .xyz, .txt, .keys, .ply, .obj, \
                          .off, .stl, .mesh, .vtu or .npz",
                         path.display()

@@ -48,7 +48,7 @@ impl Picture {
     /// Draws `mesh` at `width` x `height` with `caption` under it.
     pub fn render(mesh: &Mesh, width: usize, height: usize, caption: &str) -> Result<Self> {
         if !(64..=8192).contains(&width) || !(64..=8192).contains(&height) {
-            return Err(Error::Io(format!(
+            return Err(Error::Output(format!(
                 "picture size {width}x{height}: each side must be 64 to 8192 pixels"
             )));
         }

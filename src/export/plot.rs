@@ -87,7 +87,7 @@ impl Canvas {
 /// Draws `charts` side by side, each `panel` = (width, height) pixels, into a PNG at `path`.
 pub fn write_charts(path: &Path, charts: &[Chart], panel: (usize, usize)) -> Result<()> {
     if charts.is_empty() || panel.0 < 200 || panel.1 < 150 {
-        return Err(Error::Io(format!(
+        return Err(Error::Output(format!(
             "{}: nothing to plot, or panels under 200x150",
             path.display()
         )));

@@ -17,7 +17,7 @@ static NEXT: AtomicU64 = AtomicU64::new(0);
 pub fn check_target(path: &Path) -> Result<()> {
     let what = match std::fs::symlink_metadata(path) {
         Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(()),
-        Err(e) => return Err(Error::Io(format!("{}: {e}", path.display()))),
+        Err(e) => return Err(Error::io(path.display(), e)),
         Ok(m) => {
             let t = m.file_type();
             if t.is_file() {
@@ -31,7 +31,7 @@ pub fn check_target(path: &Path) -> Result<()> {
             }
         }
     };
-    Err(Error::Io(format!(
+    Err(Error::Output(format!(
         "{}: is {what}; outputs are written only as regular files (give another path)",
         path.display()
     )))
@@ -67,7 +67,7 @@ pub struct FileId {
 impl FileId {
     /// The identity of `path` (which need not exist yet).
     pub fn of(path: &Path) -> Result<FileId> {
-        let io = |e: std::io::Error| Error::Io(format!("{}: {e}", path.display()));
+        let io = |e: std::io::Error| Error::io(path.display(), e);
         let abs = std::env::current_dir().map_err(io)?.join(path);
         // The longest existing directory above the file, resolved; the rest applied by hand.
         let mut base = abs.clone();

@@ -268,8 +268,7 @@ impl Spec {
         if let Ok(meta) = std::fs::metadata(path) {
             crate::memory::ensure_room("reading the spec file", meta.len())?;
         }
-        let text = std::fs::read_to_string(path)
-            .map_err(|e| Error::Io(format!("{}: {e}", path.display())))?;
+        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path.display(), e))?;
         Self::from_toml(&text)
     }
 
