@@ -2,7 +2,7 @@
 // lattice cubes (which mostly share their corner rows). Per cube, it finds the 2^D corners
 // in the grid's rows, ORs the corners' sign codes over the supersets of every
 // corner set, and walks the chains of corner sets depth first, appending those whose codes
-// pass. CPU twin: `isomesh::cpu::scan::cube_candidates` (the same steps, integers only).
+// pass. CPU twin: `isomesh::trace::scan::candidates::cube_candidates` (the same steps, integers only).
 // The host prepends: `const D: u32` (dimension), `const K: u32` (codimension),
 // `const CORNERS: u32` (2^D), `const HALF: u32` (2^(D-1)), `const MASK: u32` (the bits a
 // passing code holds), `const BASE: u32` (the bit of scanned cubes), `const KP1: u32` (K + 1),

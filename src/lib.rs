@@ -69,6 +69,10 @@ pub mod triangulation;
 
 pub use error::{Error, Result};
 
+/// Largest ambient dimension: a simplex's ordered partition is held as 64-bit masks over the
+/// d+1 elements.
+pub const MAX_DIM: usize = 63;
+
 /// README's Rust example, compiled as a doctest.
 #[cfg(doctest)]
 #[doc = include_str!("../README.md")]

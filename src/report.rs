@@ -60,24 +60,6 @@ impl BackendInfo {
             adapter: None,
         }
     }
-
-    /// The GPU oracle `o`, with what it did so far.
-    #[cfg(feature = "gpu")]
-    pub fn of_gpu(o: &crate::gpu::GpuOracle) -> Self {
-        use crate::trace::Oracle;
-        let st = o.stats();
-        BackendInfo {
-            backend: o.name(),
-            precision: o.precision().ty().to_string(),
-            recheck_share: Some(if st.solved > 0 {
-                st.rechecked as f64 / st.solved as f64
-            } else {
-                0.0
-            }),
-            gpu_s: Some(st.gpu_s),
-            adapter: Some(o.gpu().adapter.clone()),
-        }
-    }
 }
 
 /// ```

@@ -8,10 +8,10 @@ use std::ops::Range;
 use std::sync::Mutex;
 
 use isomesh::cpu::decide::Status;
-use isomesh::cpu::scan::candidates;
-use isomesh::cpu::scan::Candidates;
 use isomesh::expr::{preset, Problem};
 use isomesh::gpu::{Gpu, GpuOracle, Precision};
+use isomesh::trace::scan::candidates::candidates;
+use isomesh::trace::scan::candidates::Candidates;
 use isomesh::trace::{
     exhaustive, scan_grid, trace, CpuOracle, Oracle, Sample, ScanGrid, TraceOptions,
 };

@@ -4,8 +4,8 @@
 use std::collections::{HashMap, HashSet};
 
 use isomesh::cpu::decide::Status;
-use isomesh::cpu::scan::{Candidates, BASE};
 use isomesh::expr::{preset, EquationSystem, ImplicitFunction, Problem};
+use isomesh::trace::scan::candidates::{Candidates, BASE};
 use isomesh::trace::{
     exhaustive, scan_grid, trace, CpuOracle, Oracle, Sample, ScanGrid, StopReason, TraceOptions,
 };
@@ -747,7 +747,7 @@ fn the_scan_generates_every_chain_whose_signs_admit_a_zero() {
     for (what, grid) in scan_grids() {
         let want = brute_candidates(&grid);
         assert!(want.count(grid.codim()) > 100, "{what}: too few candidates");
-        let got = isomesh::cpu::scan::candidates(&grid, 0..grid.len());
+        let got = isomesh::trace::scan::candidates::candidates(&grid, 0..grid.len());
         assert!(
             got == want,
             "{what}: {} vs {}",
@@ -758,7 +758,10 @@ fn the_scan_generates_every_chain_whose_signs_admit_a_zero() {
         let mut pieces = Candidates::default();
         for start in (0..grid.len()).step_by(777) {
             let end = (start + 777).min(grid.len());
-            pieces.append(&mut isomesh::cpu::scan::candidates(&grid, start..end));
+            pieces.append(&mut isomesh::trace::scan::candidates::candidates(
+                &grid,
+                start..end,
+            ));
         }
         assert!(pieces == want, "{what}: batches differ");
     }

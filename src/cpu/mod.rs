@@ -25,5 +25,5 @@ pub mod pivot;
 /// The expression compiler, at its old path: it lives in [`crate::expr::program`].
 #[doc(hidden)]
 pub use crate::expr::program;
-pub mod scan;
+
 pub mod vertices;

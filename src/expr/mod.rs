@@ -1,6 +1,6 @@
 //! The equation language: one text form for f, parsed once into trees that evaluate on the
 //! CPU in batches ([`program`]), differentiate symbolically, and emit WGSL
-//! ([`crate::gpu::wgsl`]); spec files and presets are written in it.
+//! (the GPU module's `wgsl`); spec files and presets are written in it.
 
 pub mod ast;
 pub mod parser;

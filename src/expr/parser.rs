@@ -1,77 +1,8 @@
 //! Lexer and recursive-descent parser for the equation language. Every error names its kind, line and
 //! column; nothing here panics on any input.
 
-use std::fmt;
-
 use super::ast::{Expr, Op1, Op2};
-
-/// What went wrong while reading an equation.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub enum ErrorKind {
-    /// A character that starts no token.
-    UnexpectedChar,
-    /// A token where another was expected.
-    UnexpectedToken,
-    /// The input ended in the middle of an expression.
-    UnexpectedEnd,
-    /// A malformed number such as `1e` or `1.2.3`.
-    BadNumber,
-    /// A name that is no variable, parameter or constant.
-    UnknownName,
-    /// A call of something that is not a function.
-    UnknownFunction,
-    /// A function called with the wrong number of arguments.
-    WrongArity,
-    /// A variable x_i with i outside 1..=d.
-    VariableIndex,
-    /// k equations for d variables with k >= d, or no equation at all.
-    Dimensions,
-    /// A name declared twice (variables and parameters share one namespace).
-    DuplicateName,
-    /// A constant sub-expression that is NaN or infinite (such as `1/0` or `sqrt(-1)`).
-    NonFinite,
-    /// More than [`MAX_TOKENS`] tokens in one equation, or more heap than the memory limit
-    /// (see [`crate::memory::within`]).
-    TooLarge,
-    /// More than [`MAX_DEPTH`] nested levels.
-    TooDeep,
-}
-
-/// A parse error with its position (1-based line and column, in characters).
-#[derive(Clone, Debug, PartialEq)]
-pub struct ParseError {
-    /// What went wrong.
-    pub kind: ErrorKind,
-    /// 1-based line.
-    pub line: usize,
-    /// 1-based column.
-    pub column: usize,
-    /// A sentence for people.
-    pub message: String,
-    /// Which text it is in ("equation 2", "boundary inequality 1", "equation 2 of the spec
-    /// file", where line and column are then the file's); empty when not known.
-    pub context: String,
-}
-
-impl ParseError {
-    /// The same error, said to be in `context`.
-    pub fn within(mut self, context: impl Into<String>) -> Self {
-        self.context = context.into();
-        self
-    }
-}
-
-impl fmt::Display for ParseError {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        write!(f, "line {}, column {}", self.line, self.column)?;
-        if !self.context.is_empty() {
-            write!(f, " ({})", self.context)?;
-        }
-        write!(f, ": {}", self.message)
-    }
-}
-
-impl std::error::Error for ParseError {}
+pub use crate::error::{ErrorKind, ParseError};
 
 #[derive(Clone, Debug, PartialEq)]
 enum Tok {

@@ -25,9 +25,10 @@ use std::sync::{Mutex, OnceLock};
 use super::context::Gpu;
 use super::wgsl::Precision;
 use crate::cpu::decide::Status;
-use crate::cpu::scan::{candidates, Candidates};
 use crate::error::{Error, Result};
 use crate::expr::ImplicitFunction;
+use crate::report::BackendInfo;
+use crate::trace::scan::candidates::{candidates, Candidates};
 use crate::trace::{CpuOracle, Oracle, ScanGrid};
 use crate::triangulation::Triangulation;
 
@@ -234,5 +235,24 @@ impl Oracle for GpuOracle<'_> {
         lambda: &mut [f64],
     ) -> Result<u64> {
         self.decide_pipelined(values, simplices, status, lambda)
+    }
+}
+
+impl BackendInfo {
+    /// The GPU oracle `o`, with what it did so far.
+    pub fn of_gpu(o: &GpuOracle) -> Self {
+        use crate::trace::Oracle;
+        let st = o.stats();
+        BackendInfo {
+            backend: o.name(),
+            precision: o.precision().ty().to_string(),
+            recheck_share: Some(if st.solved > 0 {
+                st.rechecked as f64 / st.solved as f64
+            } else {
+                0.0
+            }),
+            gpu_s: Some(st.gpu_s),
+            adapter: Some(o.gpu().adapter.clone()),
+        }
     }
 }

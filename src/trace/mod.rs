@@ -1,5 +1,5 @@
 //! Manifold tracing: the sample S of k-simplices of T crossed by M = f^-1(0), with one point
-//! of M-hat in each, found from seeds ([`trace`]) or by scanning a box ([`exhaustive`]).
+//! of M-hat in each, found from seeds ([`trace`]) or by scanning a box ([`scan`]).
 //!
 //! ```
 //! use isomesh::expr::preset;
@@ -18,11 +18,10 @@
 //! ```
 
 mod engine;
-mod exhaustive;
-mod grid;
 mod level;
 mod oracle;
 mod region;
+pub mod scan;
 mod seeds;
 mod table;
 mod warm;
@@ -33,10 +32,9 @@ use std::time::Instant;
 
 use serde::Serialize;
 
-pub use exhaustive::MAX_SCAN_DIM;
-pub use grid::ScanGrid;
 pub use oracle::{CpuOracle, Oracle};
 pub use region::{coord_bits, in_box, lattice_bounds, Domain};
+pub use scan::{exhaustive, scan_grid, ScanGrid, MAX_SCAN_DIM};
 pub use seeds::SEED_TOLERANCE;
 
 use crate::cpu::decide::Decider;
@@ -630,57 +628,6 @@ fn trace_with<const W: usize>(
         engine.trace_from_box(f, &b, search, search_seed)?;
     }
     let mut stats = engine.stats.clone();
-    stats.memory_bytes = engine.bytes() as u64;
-    stats.elapsed_s = start.elapsed().as_secs_f64();
-    let tri = engine.ctx.tri;
-    sample_from(codec, tri, engine, stats)
-}
-
-/// Every crossed k-simplex of `tri` whose point lies in `opts.bbox` (required), with no seed.
-/// Components are counted by a union-find over shared (k+1)-cofaces.
-pub fn exhaustive(
-    f: &dyn ImplicitFunction,
-    tri: &Triangulation,
-    oracle: &dyn Oracle,
-    opts: &TraceOptions,
-) -> Result<Sample> {
-    let ctx = context(f, tri, oracle, opts)?;
-    scan_box(opts)?;
-    let words = ctx.codec.words();
-    warm::maybe(opts.warm, || with_width!(words, exhaustive_with(ctx)))
-}
-
-fn scan_box<'a>(opts: &'a TraceOptions) -> Result<&'a [[f64; 2]]> {
-    opts.bbox.as_deref().ok_or_else(|| {
-        Error::Trace("the exhaustive scan needs a box (spec `box`, or --box)".into())
-    })
-}
-
-/// The lattice vertices the exhaustive scan of `opts`' box reads, with f (from `oracle`) and
-/// sign codes at each: what [`Oracle::scan_candidates`] generates candidates from. For
-/// comparing candidate generators; [`exhaustive`] builds its own.
-pub fn scan_grid(
-    f: &dyn ImplicitFunction,
-    tri: &Triangulation,
-    oracle: &dyn Oracle,
-    opts: &TraceOptions,
-) -> Result<ScanGrid> {
-    let ctx = context(f, tri, oracle, opts)?;
-    grid::build(&ctx, scan_box(opts)?)
-}
-
-fn exhaustive_with<const W: usize>(ctx: TraceContext) -> Result<Sample> {
-    let start = Instant::now();
-    let bbox = ctx.domain.bbox.expect("checked by exhaustive()");
-    let codec = ctx.codec;
-    let (table, scan_stats) = exhaustive::scan::<W>(&ctx, bbox)?;
-    let components = exhaustive::count_components(&codec, &table)?;
-    let mut engine: Engine<W> = Engine::new(ctx);
-    engine.s = table;
-    engine.stats = scan_stats;
-    engine.complete_rim()?;
-    let mut stats = engine.stats.clone();
-    stats.components = components;
     stats.memory_bytes = engine.bytes() as u64;
     stats.elapsed_s = start.elapsed().as_secs_f64();
     let tri = engine.ctx.tri;

@@ -8,9 +8,9 @@ use rayon::prelude::*;
 
 use super::ScanGrid;
 use crate::cpu::decide::{Decider, Status};
-use crate::cpu::scan::{self, Candidates};
 use crate::error::Result;
 use crate::expr::ImplicitFunction;
+use crate::trace::scan::candidates::{self, Candidates};
 use crate::triangulation::Triangulation;
 
 /// Most vertices per evaluation chunk, and simplices per decision chunk.
@@ -57,9 +57,9 @@ pub trait Oracle: Sync {
 
     /// The exhaustive scan's candidate k-simplices in the cubes based at the grid vertices
     /// `cubes`, in order of base, then chain. Every backend must give exactly
-    /// [`scan::candidates`], which is the default.
+    /// [`candidates::candidates`], which is the default.
     fn scan_candidates(&self, grid: &ScanGrid, cubes: Range<usize>) -> Result<Candidates> {
-        Ok(scan::candidates(grid, cubes))
+        Ok(candidates::candidates(grid, cubes))
     }
 }
 

@@ -38,7 +38,9 @@ impl<const W: usize> Width for Words<W> {
     }
 }
 
-/// A set of fixed-width keys in insertion order (see the [module docs](self)).
+/// A set of fixed-width keys in insertion order: a flat arena of u64 words indexed by a hash
+/// table of u32 positions, about `8 * words + 5..10` bytes per key. The width is a `usize`
+/// (the default) or [`Words<W>`], known at compile time, which unrolls the comparisons.
 #[derive(Clone, Debug)]
 pub struct KeySet<N: Width = usize> {
     width: N,

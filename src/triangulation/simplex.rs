@@ -15,8 +15,7 @@ use std::hash::{Hash, Hasher};
 
 use crate::error::{Error, Result};
 
-/// Largest ambient dimension: parts are 64-bit masks over the d+1 elements.
-pub const MAX_DIM: usize = 63;
+pub use crate::MAX_DIM;
 const MAX_PARTS: usize = MAX_DIM + 1;
 
 /// A simplex of the Freudenthal-Kuhn triangulation of Z^d, in canonical permutahedral form.

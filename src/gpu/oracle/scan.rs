@@ -1,5 +1,5 @@
 //! The scan stage (`shaders/scan.wgsl`): the exhaustive scan's candidate simplices from the
-//! grid's integer sign codes, the twin of [`scan::candidates`](crate::cpu::scan::candidates).
+//! grid's integer sign codes, the twin of [`scan::candidates`](crate::trace::scan::candidates::candidates).
 
 use std::ops::Range;
 use std::sync::atomic::Ordering;
@@ -8,9 +8,9 @@ use rayon::prelude::*;
 
 use super::device::{pipeline, Stage};
 use super::GpuOracle;
-use crate::cpu::scan::{self, pass_mask, Candidates, BASE};
 use crate::error::{Error, Result};
 use crate::gpu::wgsl::{validate, Precision};
+use crate::trace::scan::candidates::{self, pass_mask, Candidates, BASE};
 use crate::trace::ScanGrid;
 
 /// The scan's candidate generator, before its prelude.
@@ -133,7 +133,12 @@ impl GpuOracle<'_> {
                 Some(f) => words.extend(f),
                 None if range.len() == 1 => {
                     let mut one = Candidates::default();
-                    scan::cube_candidates(grid, range.start, &mut Default::default(), &mut one);
+                    candidates::cube_candidates(
+                        grid,
+                        range.start,
+                        &mut Default::default(),
+                        &mut one,
+                    );
                     for (r, c) in one.rows.chunks(k + 1).zip(one.chains.chunks(k)) {
                         words.extend_from_slice(r);
                         words.extend_from_slice(c);

@@ -4,20 +4,28 @@
 //!
 //! A k-simplex in canonical form lies in the unit lattice cube at its base vertex v0 (its
 //! vertices are v0 + e_S for a chain of subsets S of {1..d}) and has diameter <= edge. So f is
-//! evaluated once at the lattice vertices within 2 edge of the box ([`super::grid`]); the
+//! evaluated once at the lattice vertices within 2 edge of the box ([`ScanGrid`]); the
 //! oracle generates the candidate simplices of the cubes based within `edge` of it (those
-//! whose vertices' signs admit a zero: [`crate::cpu::scan`], or on a GPU `shaders/scan.wgsl`)
-//! and decides them, in batches of cubes sized to about [`TARGET_CANDIDATES`] candidates.
+//! whose vertices' signs admit a zero: [`candidates`], or on a GPU `shaders/scan.wgsl`)
+//! and decides them, in batches of cubes sized to about 2^20 candidates.
 
 use rayon::prelude::*;
 
-use super::grid::{self, ScanGrid};
+pub mod candidates;
+mod grid;
+
+pub use candidates::Candidates;
+pub use grid::ScanGrid;
+
 use super::table::{Key, Table};
-use super::{StopReason, TraceContext, TraceStats};
+use super::{
+    context, sample_from, warm, with_width, Engine, ImplicitFunction, Oracle, Sample, StopReason,
+    TraceContext, TraceOptions, TraceStats, Triangulation,
+};
 use crate::cpu::decide::Status;
-use crate::cpu::scan::Candidates;
 use crate::error::{Error, Result};
 use crate::triangulation::{Simplex, MAX_DIM};
+use std::time::Instant;
 
 /// Largest d for the scan (each cube holds 2^d corners).
 pub const MAX_SCAN_DIM: usize = 16;
@@ -205,4 +213,55 @@ pub(crate) fn count_components<const W: usize>(
         }
     }
     Ok(components)
+}
+
+/// Every crossed k-simplex of `tri` whose point lies in `opts.bbox` (required), with no seed.
+/// Components are counted by a union-find over shared (k+1)-cofaces.
+pub fn exhaustive(
+    f: &dyn ImplicitFunction,
+    tri: &Triangulation,
+    oracle: &dyn Oracle,
+    opts: &TraceOptions,
+) -> Result<Sample> {
+    let ctx = context(f, tri, oracle, opts)?;
+    scan_box(opts)?;
+    let words = ctx.codec.words();
+    warm::maybe(opts.warm, || with_width!(words, exhaustive_with(ctx)))
+}
+
+fn scan_box<'a>(opts: &'a TraceOptions) -> Result<&'a [[f64; 2]]> {
+    opts.bbox.as_deref().ok_or_else(|| {
+        Error::Trace("the exhaustive scan needs a box (spec `box`, or --box)".into())
+    })
+}
+
+/// The lattice vertices the exhaustive scan of `opts`' box reads, with f (from `oracle`) and
+/// sign codes at each: what [`Oracle::scan_candidates`] generates candidates from. For
+/// comparing candidate generators; [`exhaustive`] builds its own.
+pub fn scan_grid(
+    f: &dyn ImplicitFunction,
+    tri: &Triangulation,
+    oracle: &dyn Oracle,
+    opts: &TraceOptions,
+) -> Result<ScanGrid> {
+    let ctx = context(f, tri, oracle, opts)?;
+    grid::build(&ctx, scan_box(opts)?)
+}
+
+fn exhaustive_with<const W: usize>(ctx: TraceContext) -> Result<Sample> {
+    let start = Instant::now();
+    let bbox = ctx.domain.bbox.expect("checked by exhaustive()");
+    let codec = ctx.codec;
+    let (table, scan_stats) = scan::<W>(&ctx, bbox)?;
+    let components = count_components(&codec, &table)?;
+    let mut engine: Engine<W> = Engine::new(ctx);
+    engine.s = table;
+    engine.stats = scan_stats;
+    engine.complete_rim()?;
+    let mut stats = engine.stats.clone();
+    stats.components = components;
+    stats.memory_bytes = engine.bytes() as u64;
+    stats.elapsed_s = start.elapsed().as_secs_f64();
+    let tri = engine.ctx.tri;
+    sample_from(codec, tri, engine, stats)
 }

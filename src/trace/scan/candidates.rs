@@ -17,7 +17,7 @@ use std::ops::Range;
 
 use rayon::prelude::*;
 
-use crate::trace::ScanGrid;
+use super::ScanGrid;
 
 /// The code bit of vertices whose cube is scanned (within one edge of the box).
 pub const BASE: u32 = 1 << 31;

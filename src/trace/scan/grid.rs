@@ -1,18 +1,18 @@
 // Index loops over lattice axes read as the coordinates they are.
 #![allow(clippy::needless_range_loop)]
 //! The lattice vertices of an exhaustive scan: which are near its box, f at each, and the sign
-//! code that candidate generation reads (on the CPU, [`crate::cpu::scan`]; on a GPU,
+//! code that candidate generation reads (on the CPU, [`crate::trace::scan::candidates`]; on a GPU,
 //! `shaders/scan.wgsl`).
 
 use std::ops::Range;
 
 use rayon::prelude::*;
 
-use super::exhaustive::MAX_SCAN_DIM;
-use super::region::{in_box, lattice_bounds};
-use super::TraceContext;
-use crate::cpu::scan::{sign_code, BASE};
+use super::candidates::{sign_code, BASE};
+use super::MAX_SCAN_DIM;
 use crate::error::{Error, Result};
+use crate::trace::region::{in_box, lattice_bounds};
+use crate::trace::TraceContext;
 use crate::triangulation::MAX_DIM;
 
 /// Vertices per evaluation slab.
@@ -72,8 +72,8 @@ impl ScanGrid {
         &self.values
     }
 
-    /// The sign code of every vertex ([`crate::cpu::scan::sign_code`], with
-    /// [`BASE`](crate::cpu::scan::BASE) set on the vertices whose cube is scanned).
+    /// The sign code of every vertex ([`crate::trace::scan::candidates::sign_code`], with
+    /// [`BASE`](crate::trace::scan::candidates::BASE) set on the vertices whose cube is scanned).
     pub fn codes(&self) -> &[u32] {
         &self.codes
     }
@@ -436,7 +436,7 @@ pub(crate) fn build(ctx: &TraceContext, bbox: &[[f64; 2]]) -> Result<ScanGrid> {
     grid.values = vec![0.0; total * k];
     grid.codes = vec![0; total];
     for start in (0..total).step_by(SLAB) {
-        super::exhaustive::cancelled(ctx)?;
+        super::cancelled(ctx)?;
         let end = (start + SLAB).min(total);
         let mut lattice = vec![0i32; (end - start) * d];
         lattice
