@@ -608,3 +608,62 @@ fn io_errors_keep_the_system_error_as_their_source() {
     assert_eq!(io.kind(), std::io::ErrorKind::NotFound);
     std::fs::remove_dir_all(out).unwrap();
 }
+
+/// The section's own topology: every segment in exactly two polygons (a closed surface), its
+/// Euler characteristic, and its components (polygons joined through shared corners).
+fn section_topology(s: &isomesh::export::section::Section) -> (i64, usize) {
+    let mut uses: std::collections::HashMap<(u32, u32), u32> = Default::default();
+    for p in &s.polygons {
+        assert!(p.len() >= 3);
+        for i in 0..p.len() {
+            let (a, b) = (p[i], p[(i + 1) % p.len()]);
+            *uses.entry((a.min(b), a.max(b))).or_default() += 1;
+        }
+    }
+    assert!(
+        uses.values().all(|&n| n == 2),
+        "a segment not in two polygons"
+    );
+    let v = s.points.len() / s.dim;
+    let chi = v as i64 - uses.len() as i64 + s.polygons.len() as i64;
+    let mut parent: Vec<usize> = (0..v).collect();
+    fn root(p: &mut [usize], mut i: usize) -> usize {
+        while p[i] != i {
+            p[i] = p[p[i]];
+            i = p[i];
+        }
+        i
+    }
+    for &(a, b) in uses.keys() {
+        let (ra, rb) = (root(&mut parent, a as usize), root(&mut parent, b as usize));
+        parent[ra] = rb;
+    }
+    let components = (0..v).filter(|&i| root(&mut parent, i) == i).count();
+    (chi, components)
+}
+
+#[test]
+fn sections_of_closed_3_manifolds_are_closed_surfaces() {
+    use isomesh::export::section::Section;
+    // S^3 in R^4 by the hyperplane through its centre: one sphere.
+    let c = build(&problem("sphere", &[("m", 3.0), ("d", 4.0), ("edge", 0.2)]));
+    let s = Section::through_centroid(&c);
+    assert_eq!(s.skipped, 0);
+    assert_eq!(section_topology(&s), (2, 1));
+    // Every corner on the hyperplane, and on S^3 up to the mesh's error.
+    let n = [0.0, 0.0, 0.0, 1.0];
+    let s = Section::of(&c, &n, 0.3);
+    assert_eq!(section_topology(&s), (2, 1));
+    for x in s.points.chunks_exact(4) {
+        assert!((x[3] - 0.3).abs() < 1e-12, "{x:?}");
+        let r = x.iter().map(|v| v * v).sum::<f64>().sqrt();
+        assert!((r - 1.0).abs() < 0.05, "{x:?}");
+    }
+    // Missing the sphere: nothing.
+    assert!(Section::of(&c, &n, 1.5).polygons.is_empty());
+    // The 3-torus by x6 = 0 (c sin t3 = 0, so t3 = 0 or pi): two 2-tori.
+    let c = build(&problem("3-torus", &[("edge", 0.5)]));
+    let s = Section::of(&c, &[0.0, 0.0, 0.0, 0.0, 0.0, 1.0], 0.0);
+    assert_eq!(s.skipped, 0);
+    assert_eq!(section_topology(&s), (0, 2));
+}

@@ -15,6 +15,7 @@ pub mod plot;
 pub mod projection;
 pub mod raster;
 pub mod safe;
+pub mod section;
 
 pub use mesh::{write_mesh, write_mesh_as, Encoding, Mesh, MeshFormat};
 pub use projection::{Projection, View};

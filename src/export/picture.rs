@@ -1,10 +1,14 @@
 //! PNG pictures of a mesh, drawn on the CPU: surfaces as lit triangles with a depth buffer,
-//! curves and the edges of 3-manifolds without boundary as lines, seen obliquely in the
-//! mesh's 3-D view, with a caption.
+//! curves as lines, seen obliquely in the mesh's 3-D view, with a caption that says how R^d
+//! was seen. A 3-manifold with boundary is drawn as its boundary; a closed one as its
+//! [`Section`] by the hyperplane through its centre, normal to its least-varying axis (every
+//! edge at once is a solid blob).
 
 use std::path::Path;
 
 use super::mesh::Mesh;
+use super::projection::{Projection, View};
+use super::section::Section;
 use crate::error::{Error, Result};
 
 /// An RGB picture.
@@ -45,7 +49,8 @@ fn unit(a: [f64; 3]) -> [f64; 3] {
 }
 
 impl Picture {
-    /// Draws `mesh` at `width` x `height` with `caption` under it.
+    /// Draws `mesh` at `width` x `height` with `caption` under it, and above it how R^d was
+    /// seen when that is not its coordinates ("PCA view", "section by a hyperplane...").
     pub fn render(mesh: &Mesh, width: usize, height: usize, caption: &str) -> Result<Self> {
         if !(64..=8192).contains(&width) || !(64..=8192).contains(&height) {
             return Err(Error::Output(format!(
@@ -65,14 +70,39 @@ impl Picture {
                 pic.rgb[(y * width + x) * 3..][..3].copy_from_slice(&c.map(|v| v as u8));
             }
         }
+        let c = mesh.complex;
+        let (d, m) = (c.ambient_dim(), c.dim());
+        let section = (m == 3 && mesh.triangles.is_empty()).then(|| Section::through_centroid(c));
+        let (xyz, triangles, seen) = match &section {
+            Some(s) => {
+                let view = View::new(&Projection::Auto, &s.points, d);
+                (
+                    view.apply_all(&s.points),
+                    s.triangles(),
+                    "section by a hyperplane; PCA view",
+                )
+            }
+            None => (
+                mesh.xyz.clone(),
+                mesh.triangles.clone(),
+                if mesh.view.description.starts_with("pca") {
+                    "PCA view"
+                } else {
+                    ""
+                },
+            ),
+        };
+        // Two colours for the two sides of an oriented surface in R^3; seen from R^d, d > 3,
+        // a projection folds, and both sides are drawn alike.
+        let two_sided = m == 2 && d <= 3 && section.is_none();
         // Camera frame: right, up, towards the viewer.
         let fwd = unit(EYE);
         let right = unit(cross(UP, fwd));
         let up = cross(fwd, right);
-        let n = mesh.xyz.len() / 3;
+        let n = xyz.len() / 3;
         let cam: Vec<[f64; 3]> = (0..n)
             .map(|i| {
-                let p = [mesh.xyz[3 * i], mesh.xyz[3 * i + 1], mesh.xyz[3 * i + 2]];
+                let p = [xyz[3 * i], xyz[3 * i + 1], xyz[3 * i + 2]];
                 [dot(p, right), dot(p, up), dot(p, fwd)]
             })
             .collect();
@@ -99,9 +129,8 @@ impl Picture {
                 ]
             })
             .collect();
-        let m = mesh.complex.dim();
-        if !mesh.triangles.is_empty() {
-            for t in &mesh.triangles {
+        if !triangles.is_empty() {
+            for t in &triangles {
                 let [a, b, c] = t.map(|v| cam[v as usize]);
                 let raw = unit(cross(
                     [b[0] - a[0], b[1] - a[1], b[2] - a[2]],
@@ -109,7 +138,7 @@ impl Picture {
                 ));
                 // Two-sided: the side facing the viewer is lit; an oriented surface shows
                 // its back side in another colour.
-                let front = m != 2 || raw[2] >= 0.0;
+                let front = !two_sided || raw[2] >= 0.0;
                 let nrm = if raw[2] < 0.0 { raw.map(|x| -x) } else { raw };
                 let light = 0.22
                     + 0.62 * dot(nrm, unit(KEY)).max(0.0)
@@ -148,6 +177,7 @@ impl Picture {
             }
         }
         pic.text(8, height - 20, caption, [30, 34, 44]);
+        pic.text(8, 6, seen, [70, 76, 96]);
         Ok(pic)
     }
 

@@ -2,7 +2,6 @@
 //! axes of the vertices (PCA). The choice is written into every file that uses it.
 
 use crate::error::{Error, Result};
-use crate::linalg::symmetric_eigen;
 
 /// How to map R^d to R^3.
 #[derive(Clone, Debug, PartialEq, Default)]
@@ -115,22 +114,7 @@ impl View {
 }
 
 fn pca(points: &[f64], d: usize) -> View {
-    let n = (points.len() / d).max(1) as f64;
-    let mut centre = vec![0.0; d];
-    for x in points.chunks_exact(d) {
-        for (c, v) in centre.iter_mut().zip(x) {
-            *c += v / n;
-        }
-    }
-    let mut cov = vec![0.0; d * d];
-    for x in points.chunks_exact(d) {
-        for i in 0..d {
-            for j in 0..d {
-                cov[i * d + j] += (x[i] - centre[i]) * (x[j] - centre[j]) / n;
-            }
-        }
-    }
-    let (_, vectors) = symmetric_eigen(&cov, d);
+    let (centre, vectors) = super::section::principal_axes(points, d);
     let mut matrix = vec![0.0; 3 * d];
     for r in 0..3.min(d) {
         let row = &vectors[r * d..(r + 1) * d];
