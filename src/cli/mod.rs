@@ -1,6 +1,8 @@
 //! The command line's pieces: loading a problem, `check`, `trace`, `bench`.
 
 pub mod bench;
+mod checks;
+mod outputs;
 pub mod signals;
 pub mod text;
 pub mod trace;

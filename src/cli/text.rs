@@ -1,7 +1,9 @@
-//! Text the command line echoes: numbers in a short form, user text cut and escaped, and
-//! standard output that tolerates a closed pipe.
+//! Text the command line echoes: numbers in a short form, user text cut and escaped,
+//! standard output that tolerates a closed pipe, the topology summary and picture captions.
 
 use std::fmt::Write as _;
+
+use isomesh::complex::Topology;
 
 /// Longest run of non-space characters echoed whole.
 const MAX_WORD: usize = 64;
@@ -101,6 +103,92 @@ pub fn say_line(args: std::fmt::Arguments) {
     {
         CLOSED.store(true, Ordering::Relaxed);
     }
+}
+
+/// The caption of pictures.
+pub(super) fn caption(name: &str, d: usize, t: &Topology) -> String {
+    format!(
+        "{name}: {}-manifold in R^{d}, cells {}, chi = {}{}",
+        t.dim,
+        t.cells
+            .iter()
+            .map(usize::to_string)
+            .collect::<Vec<_>>()
+            .join("/"),
+        t.euler_characteristic,
+        if t.closed { "" } else { ", with boundary" }
+    )
+}
+
+/// The readable topology summary.
+pub(super) fn summary(t: &Topology, seconds: f64) -> String {
+    let names = ["vertices", "edges", "faces", "3-cells"];
+    let counts = |c: &[usize]| {
+        c.iter()
+            .enumerate()
+            .map(|(j, n)| match names.get(j) {
+                Some(name) => format!("{n} {name}"),
+                None => format!("{n} {j}-cells"),
+            })
+            .collect::<Vec<_>>()
+            .join(", ")
+    };
+    let mut s = format!(
+        "  complex: {}; Euler characteristic {} (built in {seconds:.3} s)",
+        counts(&t.cells),
+        t.euler_characteristic
+    );
+    let kind = match (t.manifold, t.closed) {
+        (true, true) => "closed manifold",
+        (true, false) => "manifold with boundary",
+        (false, true) => "NOT a manifold (no boundary)",
+        (false, false) => "NOT a manifold (with boundary)",
+    };
+    s += &format!(
+        "\n  topology: {kind}, {} component{}",
+        t.components,
+        if t.components == 1 { "" } else { "s" }
+    );
+    if let Some(o) = t.orientable {
+        s += if o {
+            ", orientable"
+        } else {
+            ", non-orientable"
+        };
+    }
+    if let Some(b) = &t.betti_mod2 {
+        let b: Vec<String> = b.iter().map(usize::to_string).collect();
+        s += &format!(", Betti numbers mod 2: {}", b.join(" "));
+    }
+    if !t.closed {
+        s += &format!(
+            "\n  boundary: {}; Euler characteristic {}",
+            counts(&t.boundary_cells),
+            t.boundary_euler_characteristic
+        );
+    }
+    if !t.manifold {
+        s += &format!(
+            "\n  offenders: {} ridge{} without the right number of cofaces, {} edge{} left out",
+            t.offender_count,
+            if t.offender_count == 1 { "" } else { "s" },
+            t.defects,
+            if t.defects == 1 { "" } else { "s" }
+        );
+        for o in t.offenders.iter().take(5) {
+            s += &format!(
+                "\n    cell {} ({}): {} cofaces",
+                o.cell,
+                if o.on_boundary {
+                    "boundary"
+                } else {
+                    "interior"
+                },
+                o.cofaces
+            );
+        }
+    }
+    s
 }
 
 #[cfg(test)]

@@ -2,18 +2,17 @@
 //! the JSON report, print a summary.
 
 use std::io::Write;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::sync::atomic::Ordering;
 use std::time::{Duration, Instant};
 
 use clap::{Args, ValueEnum};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
-use isomesh::complex::{Complex, Topology};
+use isomesh::complex::Complex;
 use isomesh::export::picture::Picture;
-use isomesh::export::safe::{check_target, FileId};
 use isomesh::export::{
     write_atomic, write_mesh_as, write_sample, write_sample_to, Encoding, Mesh,
-    OutputFormat as Output, Projection, SampleFormat,
+    OutputFormat as Output,
 };
 use isomesh::expr::{ImplicitFunction, Problem};
 use isomesh::gpu::{Gpu, GpuOracle, Precision};
@@ -23,7 +22,9 @@ use isomesh::trace::{exhaustive, trace, CpuOracle, Oracle, Progress, TraceOption
 use isomesh::triangulation::TriangulationKind;
 use isomesh::{Error, Result};
 
-use super::text::{num, say, shown};
+use super::checks::{check_not_zero, singular_seeds};
+use super::outputs::{plan_outputs, report_to_stdout, Plan};
+use super::text::{caption, num, say, shown, summary};
 use super::{load, signals};
 
 /// Which oracle runs the intersection tests.
@@ -228,20 +229,6 @@ fn parse_count<T: std::str::FromStr>(s: &str) -> std::result::Result<T, String> 
     })
 }
 
-/// The format of `path`: `--format` when given, else its extension.
-fn output_kind(path: &std::path::Path, format: Option<&str>) -> Result<Output> {
-    match format {
-        Some(f) => Output::from_name(f).ok_or_else(|| {
-            Error::Spec(format!(
-                "--format {}: use {}",
-                shown(f),
-                isomesh::export::FORMAT_NAMES
-            ))
-        }),
-        None => Output::for_path(path, None),
-    }
-}
-
 /// The box from `--box` for dimension d.
 fn box_from_flag(v: &[f64], d: usize) -> Result<Vec<[f64; 2]>> {
     match v.len() {
@@ -296,131 +283,6 @@ pub fn run(args: &TraceArgs) -> Result<()> {
             )
         })?;
     pool.install(|| run_in_pool(&problem, args, &plan, threads))
-}
-
-/// `--report -`: the JSON report goes to standard output.
-fn report_to_stdout(args: &TraceArgs) -> bool {
-    args.report.as_ref().is_some_and(|p| p.as_os_str() == "-")
-}
-
-/// One --out: where it goes and what it receives.
-struct Planned {
-    path: PathBuf,
-    kind: Output,
-    /// `--out -`: standard output.
-    stdout: bool,
-}
-
-/// The outputs and the projection, every output flag checked before anything is traced:
-/// formats, the mesh dimension they hold, the projection, paths that must be regular files,
-/// and no output the same file as another or as the input spec.
-struct Plan {
-    outs: Vec<Planned>,
-    projection: Projection,
-}
-
-fn plan_outputs(args: &TraceArgs, p: &Problem) -> Result<Plan> {
-    let (d, k) = (p.system.ambient_dim(), p.system.codim());
-    if args.format.is_some() && args.out.is_empty() {
-        return Err(Error::Spec(
-            "--format sets the format of --out files: give --out too".into(),
-        ));
-    }
-    let mut outs = Vec::new();
-    for path in &args.out {
-        let stdout = path.as_os_str() == "-";
-        if !stdout {
-            check_target(path).map_err(|e| e.for_flag("--out"))?;
-        }
-        let kind = match (stdout, args.format.as_deref()) {
-            (true, None) => Output::Sample(SampleFormat::Csv),
-            (_, format) => output_kind(path, format)?,
-        };
-        match &kind {
-            Output::Mesh(_) if stdout => {
-                return Err(Error::Spec(
-                    "--out -: standard output takes the sample only (csv or xyz); write mesh \
-                     files to a path"
-                        .into(),
-                ))
-            }
-            Output::Mesh(format) => format.check_holds(d - k, path)?,
-            Output::Sample(_) => {}
-        }
-        outs.push(Planned {
-            path: path.clone(),
-            kind,
-            stdout,
-        });
-    }
-    if outs.iter().filter(|o| o.stdout).count() > 1 {
-        return Err(Error::Spec("--out - is given twice".into()));
-    }
-    if report_to_stdout(args) && outs.iter().any(|o| o.stdout) {
-        return Err(Error::Spec(
-            "--out - and --report - both ask for standard output: give one of them a path".into(),
-        ));
-    }
-    if args.png.as_ref().is_some_and(|p| p.as_os_str() == "-") {
-        return Err(Error::Spec(
-            "--png -: a picture is written to a file; give a path".into(),
-        ));
-    }
-    let projection = Projection::parse(&args.project, d)?;
-    let wants_mesh = args.png.is_some() || outs.iter().any(|o| matches!(o.kind, Output::Mesh(_)));
-    if args.no_complex && wants_mesh {
-        return Err(Error::Spec(
-            "--no-complex: mesh files and pictures need the cell complex".into(),
-        ));
-    }
-    if args.backend.unwrap_or(Backend::Cpu) == Backend::Cpu {
-        for (set, flag) in [
-            (args.precision.is_some(), "--precision"),
-            (args.level_slice.is_some(), "--level-slice"),
-        ] {
-            if set {
-                return Err(Error::Spec(format!(
-                    "{flag} sets the GPU oracle; the CPU backend (the default) has no use for \
-                     it: add --backend gpu or --backend auto, or leave {flag} out"
-                )));
-            }
-        }
-    }
-    // Files: each absent or a regular file, and no two the same file.
-    let mut files: Vec<(String, &Path, FileId)> = Vec::new();
-    let named = outs
-        .iter()
-        .filter(|o| !o.stdout)
-        .map(|o| ("--out", o.path.as_path()))
-        .chain(args.png.iter().map(|p| ("--png", p.as_path())))
-        .chain(
-            args.report
-                .iter()
-                .filter(|_| !report_to_stdout(args))
-                .map(|p| ("--report", p.as_path())),
-        );
-    for (flag, path) in named {
-        check_target(path).map_err(|e| e.for_flag(flag))?;
-        let id = FileId::of(path)?;
-        if let Some((other, other_path, _)) = files.iter().find(|f| f.2.same(&id)) {
-            return Err(Error::Spec(format!(
-                "{flag} {} and {other} {} are the same file: give each output its own path",
-                shown(&path.display().to_string()),
-                shown(&other_path.display().to_string())
-            )));
-        }
-        files.push((flag.to_string(), path, id));
-    }
-    if let Some(spec) = &args.spec {
-        let id = FileId::of(spec)?;
-        if let Some((flag, path, _)) = files.iter().find(|f| f.2.same(&id)) {
-            return Err(Error::Spec(format!(
-                "{flag} {} is the input spec: it would be overwritten; give another path",
-                shown(&path.display().to_string())
-            )));
-        }
-    }
-    Ok(Plan { outs, projection })
 }
 
 fn apply_flags(p: &mut Problem, args: &TraceArgs) -> Result<()> {
@@ -820,160 +682,6 @@ fn empty_reason(st: &isomesh::trace::TraceStats, args: &TraceArgs) -> String {
             .to_string()
     };
     format!("no crossed simplex was found: {why}")
-}
-
-/// Points where `p`'s equations are tried for being identically 0: 64 points of the box, or
-/// within 100 edges (at least a millionth of their size) of the seeds when there is no box
-/// (seeded, so the same each run).
-fn probe_points(p: &Problem, edge: f64) -> Vec<f64> {
-    use rand::{Rng, SeedableRng};
-    let d = p.dim();
-    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(7);
-    let mut pts = Vec::with_capacity(64 * d);
-    for i in 0..64 {
-        for c in 0..d {
-            let (lo, hi) = match (&p.bbox, p.seeds.get(i % p.seeds.len().max(1))) {
-                (Some(b), _) => (b[c][0], b[c][1]),
-                (None, Some(s)) => {
-                    // Wide enough to move every coordinate, however fine the edge.
-                    let r = (100.0 * edge).max(1e-6 * s[c].abs().max(1.0));
-                    (s[c] - r, s[c] + r)
-                }
-                (None, None) => return pts,
-            };
-            pts.push(rng.random_range(lo..=hi));
-        }
-    }
-    pts
-}
-
-/// Refuses an equation that is 0 at every probe point: its zero set is no manifold, and
-/// tracing it would report every simplex as degenerate.
-fn check_not_zero(p: &Problem, tri: &isomesh::triangulation::Triangulation) -> Result<()> {
-    let pts = probe_points(p, tri.edge());
-    match isomesh::expr::zero_equation_at(&p.system, &pts) {
-        Some(i) => Err(Error::Spec(format!(
-            "equation {} is 0 at all of {} points tried {}: it is identically 0 there, and its \
-             zero set is no manifold",
-            i + 1,
-            pts.len() / p.dim(),
-            if p.bbox.is_some() {
-                "in the box"
-            } else {
-                "around the seeds"
-            }
-        ))),
-        None => Ok(()),
-    }
-}
-
-/// The seeds (1-based) at which f's Jacobian is rank-deficient, each warned about.
-fn singular_seeds(p: &Problem, edge: f64, quiet: bool) -> Vec<usize> {
-    let mut out = Vec::new();
-    for (i, s) in p.seeds.iter().enumerate() {
-        let Ok(x) = isomesh::expr::newton_project(&p.system, s, isomesh::trace::SEED_TOLERANCE)
-        else {
-            continue;
-        };
-        if isomesh::expr::is_singular_at(&p.system, &x, edge) {
-            out.push(i + 1);
-            if !quiet {
-                eprintln!(
-                    "warning: seed {} projects to {x:?}, where the Jacobian of f is \
-                     rank-deficient (a crossing of branches, a cusp): the trace follows at most \
-                     one branch from there; move the seed off the singular point",
-                    i + 1
-                );
-            }
-        }
-    }
-    out
-}
-
-/// The caption of pictures.
-fn caption(name: &str, d: usize, t: &Topology) -> String {
-    format!(
-        "{name}: {}-manifold in R^{d}, cells {}, chi = {}{}",
-        t.dim,
-        t.cells
-            .iter()
-            .map(usize::to_string)
-            .collect::<Vec<_>>()
-            .join("/"),
-        t.euler_characteristic,
-        if t.closed { "" } else { ", with boundary" }
-    )
-}
-
-/// The readable topology summary.
-fn summary(t: &Topology, seconds: f64) -> String {
-    let names = ["vertices", "edges", "faces", "3-cells"];
-    let counts = |c: &[usize]| {
-        c.iter()
-            .enumerate()
-            .map(|(j, n)| match names.get(j) {
-                Some(name) => format!("{n} {name}"),
-                None => format!("{n} {j}-cells"),
-            })
-            .collect::<Vec<_>>()
-            .join(", ")
-    };
-    let mut s = format!(
-        "  complex: {}; Euler characteristic {} (built in {seconds:.3} s)",
-        counts(&t.cells),
-        t.euler_characteristic
-    );
-    let kind = match (t.manifold, t.closed) {
-        (true, true) => "closed manifold",
-        (true, false) => "manifold with boundary",
-        (false, true) => "NOT a manifold (no boundary)",
-        (false, false) => "NOT a manifold (with boundary)",
-    };
-    s += &format!(
-        "\n  topology: {kind}, {} component{}",
-        t.components,
-        if t.components == 1 { "" } else { "s" }
-    );
-    if let Some(o) = t.orientable {
-        s += if o {
-            ", orientable"
-        } else {
-            ", non-orientable"
-        };
-    }
-    if let Some(b) = &t.betti_mod2 {
-        let b: Vec<String> = b.iter().map(usize::to_string).collect();
-        s += &format!(", Betti numbers mod 2: {}", b.join(" "));
-    }
-    if !t.closed {
-        s += &format!(
-            "\n  boundary: {}; Euler characteristic {}",
-            counts(&t.boundary_cells),
-            t.boundary_euler_characteristic
-        );
-    }
-    if !t.manifold {
-        s += &format!(
-            "\n  offenders: {} ridge{} without the right number of cofaces, {} edge{} left out",
-            t.offender_count,
-            if t.offender_count == 1 { "" } else { "s" },
-            t.defects,
-            if t.defects == 1 { "" } else { "s" }
-        );
-        for o in t.offenders.iter().take(5) {
-            s += &format!(
-                "\n    cell {} ({}): {} cofaces",
-                o.cell,
-                if o.on_boundary {
-                    "boundary"
-                } else {
-                    "interior"
-                },
-                o.cofaces
-            );
-        }
-    }
-    s
 }
 
 fn progress_bar(quiet: bool) -> ProgressBar {
