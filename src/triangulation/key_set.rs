@@ -122,6 +122,7 @@ impl<N: Width> KeySet<N> {
 
     /// Inserts `key`; returns its index and whether it was new. An error, and the set
     /// unchanged, when a new key would need an index past u32 (2^32 keys held already).
+    #[inline]
     pub fn insert(&mut self, key: &[u64]) -> Result<(usize, bool)> {
         debug_assert_eq!(key.len(), self.words());
         let h = self.hasher.hash_one(key);
@@ -151,6 +152,7 @@ impl<N: Width> KeySet<N> {
 
     /// Inserts `key`, known not to be in the set (one probe less than [`KeySet::insert`]);
     /// returns its index.
+    #[inline]
     pub fn insert_new(&mut self, key: &[u64]) -> Result<usize> {
         debug_assert_eq!(key.len(), self.words());
         debug_assert!(self.find(key).is_none());
@@ -166,6 +168,7 @@ impl<N: Width> KeySet<N> {
     }
 
     /// The table position of the key at index `i`, or the overflow error.
+    #[inline]
     fn position(&self, i: usize) -> Result<u32> {
         u32::try_from(i)
             .ok()
