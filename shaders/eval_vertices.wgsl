@@ -1,6 +1,6 @@
 // Evaluates f at lattice vertices: each vertex u (integer coordinates, stored as reals) goes to
 // R^d by the triangulation's affine map x = A u + b inside the shader, then through f.
-// CPU twin: `isomesh::cpu::vertices::eval_lattice` (the same operations in the same order).
+// CPU twin: `isomesh::cpu::eval_vertices::eval_lattice` (the same operations in the same order).
 // The host prepends: `alias real`, `const DIM: u32`, `const OUTS: u32`, `alias Point` (DIM reals)
 // and the function `fn isomesh_f(x: Point) -> array<real, OUTS>`.
 // input: A (DIM x DIM, row-major), then b (DIM), then count rows of DIM lattice coordinates.

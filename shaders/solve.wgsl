@@ -1,4 +1,4 @@
-// The intersection test's fast path, the twin of `Decider::fast_path` in src/cpu/decide.rs:
+// The intersection test's fast path, the twin of `Decider::fast_path` in src/cpu/solve.rs:
 // Gauss-Jordan inversion of the labelling matrix L = [1 .. 1; F_0 .. F_k] with partial
 // pivoting, lambda = first column of L^-1, and a first-order error bound per lambda_i.
 // The host prepends: `alias real`, `const N: u32` (k + 1), `const NN: u32` (N * N),

@@ -10,7 +10,7 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use serde::Deserialize;
 
-use crate::cpu::decide::Status;
+use crate::cpu::solve::Status;
 use crate::error::{Error, Result};
 use crate::expr::{preset, ClosureFunction, Problem};
 use crate::trace::{trace, Oracle, Sample, TraceOptions};

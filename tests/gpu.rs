@@ -7,7 +7,7 @@
 use std::ops::Range;
 use std::sync::Mutex;
 
-use isomesh::cpu::decide::Status;
+use isomesh::cpu::solve::Status;
 use isomesh::expr::{preset, Problem};
 use isomesh::gpu::{Gpu, GpuOracle, Precision};
 use isomesh::trace::scan::candidates::candidates;
@@ -366,7 +366,7 @@ fn the_solve_shader_matches_its_cpu_twin() {
     let count = 200_000;
     let (values, idx) = hard_batch(k, count, 11);
     // The CPU fast path on the same inputs.
-    let mut decider = isomesh::cpu::decide::Decider::new(k);
+    let mut decider = isomesh::cpu::solve::Decider::new(k);
     let mut cpu_lambda = vec![0.0; count * n];
     let cpu: Vec<Option<Status>> = (0..count)
         .map(|i| {
@@ -415,10 +415,10 @@ fn the_solve_shader_matches_its_cpu_twin() {
 }
 
 #[test]
-fn the_vertex_shader_matches_its_cpu_twin() {
-    use isomesh::cpu::vertices::eval_lattice;
+fn the_eval_vertices_shader_matches_its_cpu_twin() {
+    use isomesh::cpu::eval_vertices::eval_lattice;
     use isomesh::expr::{ImplicitFunction, PRESETS};
-    let Some(g) = gpu("the_vertex_shader_matches_its_cpu_twin") else {
+    let Some(g) = gpu("the_eval_vertices_shader_matches_its_cpu_twin") else {
         return;
     };
     for info in PRESETS {

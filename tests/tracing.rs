@@ -3,7 +3,7 @@
 
 use std::collections::{HashMap, HashSet};
 
-use isomesh::cpu::decide::Status;
+use isomesh::cpu::solve::Status;
 use isomesh::expr::{preset, EquationSystem, ImplicitFunction, Problem};
 use isomesh::trace::scan::candidates::{Candidates, BASE};
 use isomesh::trace::{

@@ -18,12 +18,12 @@ macro_rules! unrolled {
 }
 pub(crate) use unrolled;
 
-pub mod decide;
-#[cfg(test)]
-mod decide_adversarial;
 pub mod pivot;
+pub mod solve;
+#[cfg(test)]
+mod solve_adversarial;
 /// The expression compiler, at its old path: it lives in [`crate::expr::program`].
 #[doc(hidden)]
 pub use crate::expr::program;
 
-pub mod vertices;
+pub mod eval_vertices;

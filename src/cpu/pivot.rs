@@ -4,7 +4,7 @@
 //! k-simplex sigma and a (k+1)-simplex tau having it as a facet, the other crossed facet of
 //! tau with one matrix-vector product instead of k + 1 solves.
 //!
-//! With L the labelling matrix of sigma (see [`crate::cpu::decide`]) and a = [1; F(w)] the
+//! With L the labelling matrix of sigma (see [`crate::cpu::solve`]) and a = [1; F(w)] the
 //! column of tau's extra vertex w, the facet left when w enters is the one opposite the
 //! vertex i of sigma that minimises row_i(L^-1) / (L^-1 a)_i lexicographically over the
 //! (L^-1 a)_i > 0: the lexicographic ratio test of the simplex method. In exact arithmetic
@@ -13,7 +13,7 @@
 //! confirms with the exact oracle (a wrong guess is a facet the oracle finds not crossed,
 //! and the caller then tests every facet of tau).
 
-use super::decide::{invert, scaled_row_factors};
+use super::solve::{invert, scaled_row_factors};
 
 /// L^-1 of one crossed k-simplex, ready for ratio tests against its cofacets' vertices.
 #[derive(Clone, Debug)]
@@ -106,7 +106,7 @@ impl Pivot {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::cpu::decide::{exact_decision, Status};
+    use crate::cpu::solve::{exact_decision, Status};
     use rand::{Rng, SeedableRng};
 
     /// Pivots on random (k+1)-simplices with crossed facets, k = 1..6: how many named the

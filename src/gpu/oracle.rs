@@ -4,7 +4,7 @@
 //! What makes S the CPU's S: the shader only takes decisions that its error bound certifies.
 //! In f64 it keeps certain crossings (with their lambda) and certain misses; in f32 it keeps
 //! only certain misses, so every crossing point is computed by the CPU in f64. Everything else
-//! is re-decided on the CPU by [`Decider`](crate::cpu::decide::Decider), exactly where needed.
+//! is re-decided on the CPU by [`Decider`](crate::cpu::solve::Decider), exactly where needed.
 //!
 //! A batch goes through in chunks, pipelined: while the device solves one chunk, the host
 //! packs the next and settles the previous one. Each round trip checks its buffers out of
@@ -24,7 +24,7 @@ use std::sync::{Mutex, OnceLock};
 
 use super::context::Gpu;
 use super::wgsl::Precision;
-use crate::cpu::decide::Status;
+use crate::cpu::solve::Status;
 use crate::error::{Error, Result};
 use crate::expr::ImplicitFunction;
 use crate::report::BackendInfo;

@@ -9,7 +9,7 @@ use rayon::prelude::*;
 use super::level::{sort, Back, Found, Frontier};
 use super::table::{Key, Table};
 use super::{Progress, StopReason, TraceContext, TraceStats, DEFAULT_EXTENT_STEPS};
-use crate::cpu::decide::Status;
+use crate::cpu::solve::Status;
 use crate::error::Result;
 
 /// Marks a vertex not yet in the cache.

@@ -13,8 +13,8 @@ use rayon::prelude::*;
 
 use super::engine::{Engine, Verdicts};
 use super::table::Key;
-use crate::cpu::decide::Status;
 use crate::cpu::pivot::Pivot;
+use crate::cpu::solve::Status;
 use crate::error::Result;
 use crate::triangulation::{Simplex, MAX_DIM};
 

@@ -37,7 +37,7 @@ pub use region::{coord_bits, in_box, lattice_bounds, Domain};
 pub use scan::{exhaustive, scan_grid, ScanGrid, MAX_SCAN_DIM};
 pub use seeds::SEED_TOLERANCE;
 
-use crate::cpu::decide::Decider;
+use crate::cpu::solve::Decider;
 use crate::error::{Error, Result};
 use crate::expr::spec::check_box;
 use crate::expr::ImplicitFunction;
@@ -709,7 +709,7 @@ mod tests {
             &self,
             values: &[f64],
             simplices: &[u32],
-            status: &mut [crate::cpu::decide::Status],
+            status: &mut [crate::cpu::solve::Status],
             lambda: &mut [f64],
         ) -> Result<u64> {
             self.0.decide(values, simplices, status, lambda)

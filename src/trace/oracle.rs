@@ -7,7 +7,7 @@ use std::ops::Range;
 use rayon::prelude::*;
 
 use super::ScanGrid;
-use crate::cpu::decide::{Decider, Status};
+use crate::cpu::solve::{Decider, Status};
 use crate::error::Result;
 use crate::expr::ImplicitFunction;
 use crate::trace::scan::candidates::{self, Candidates};

@@ -1,5 +1,5 @@
 //! The vertex-evaluation stage (`shaders/eval_vertices.wgsl`): f at lattice vertices, mapped
-//! to R^d inside the shader; the twin of [`eval_lattice`](crate::cpu::vertices::eval_lattice).
+//! to R^d inside the shader; the twin of [`eval_lattice`](crate::cpu::eval_vertices::eval_lattice).
 
 use super::device::{pipeline, Stage};
 use super::GpuOracle;
@@ -28,7 +28,7 @@ impl GpuOracle<'_> {
 
     #[doc(hidden)] // a stage alone, for tests and benchmarks
     /// The vertex shader alone (`shaders/eval_vertices.wgsl`), the twin of
-    /// [`eval_lattice`](crate::cpu::vertices::eval_lattice): f at the lattice vertices
+    /// [`eval_lattice`](crate::cpu::eval_vertices::eval_lattice): f at the lattice vertices
     /// `lattice` (rows of d) of `tri`, mapped to R^d inside the shader; rows of k values.
     /// Tracing does not use it (see the module documentation): it is the building block of
     /// GPU-side scans, and measured by `isomesh bench`.

@@ -1,5 +1,5 @@
 //! The solve stage (`shaders/solve.wgsl`): the intersection test's (k+1)x(k+1) solves, the
-//! twin of the CPU fast path [`Decider::fast_path`](crate::cpu::decide::Decider::fast_path).
+//! twin of the CPU fast path [`Decider::fast_path`](crate::cpu::solve::Decider::fast_path).
 //! A decision batch goes through in pipelined chunks; what the shader's bound does not
 //! certify is decided again on the CPU.
 
@@ -11,7 +11,7 @@ use rayon::prelude::*;
 
 use super::device::{add_time, Stage};
 use super::GpuOracle;
-use crate::cpu::decide::{filter_verdict, scaled_rows, Status, BOUND_FACTOR, MAX_RELATIVE_BOUND};
+use crate::cpu::solve::{filter_verdict, scaled_rows, Status, BOUND_FACTOR, MAX_RELATIVE_BOUND};
 use crate::error::Result;
 use crate::gpu::wgsl::{validate, Precision};
 use crate::trace::{CpuOracle, Oracle};
@@ -76,7 +76,7 @@ impl GpuOracle<'_> {
     }
 
     #[doc(hidden)] // a stage alone, for tests and benchmarks
-    /// The shader stage alone, the twin of [`Decider::fast_path`](crate::cpu::decide::Decider::fast_path): for each simplex (rows of
+    /// The shader stage alone, the twin of [`Decider::fast_path`](crate::cpu::solve::Decider::fast_path): for each simplex (rows of
     /// vertex indices into `values`, as in [`Oracle::decide`]), the shader's verdict as the
     /// fast path's `Option<Status>` (None: uncertain), and lambda. No host filter runs first.
     pub fn solve_stage(

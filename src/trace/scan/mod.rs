@@ -22,7 +22,7 @@ use super::{
     context, sample_from, warm, with_width, Engine, ImplicitFunction, Oracle, Sample, StopReason,
     TraceContext, TraceOptions, TraceStats, Triangulation,
 };
-use crate::cpu::decide::Status;
+use crate::cpu::solve::Status;
 use crate::error::{Error, Result};
 use crate::triangulation::{Simplex, MAX_DIM};
 use std::time::Instant;

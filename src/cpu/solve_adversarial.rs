@@ -7,7 +7,7 @@
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
-use super::decide::{exact_decision, Decider, Status};
+use super::solve::{exact_decision, Decider, Status};
 
 /// The kinds of inputs, one per case in turn.
 #[derive(Clone, Copy, Debug)]
