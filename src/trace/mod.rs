@@ -21,6 +21,7 @@ mod engine;
 mod level;
 mod oracle;
 mod region;
+mod sample;
 pub mod scan;
 mod seeds;
 mod table;
@@ -34,16 +35,16 @@ use serde::Serialize;
 
 pub use oracle::{CpuOracle, Oracle};
 pub use region::{coord_bits, in_box, lattice_bounds, Domain};
+use sample::sample_from;
+pub use sample::Sample;
 pub use scan::{exhaustive, scan_grid, ScanGrid, MAX_SCAN_DIM};
 pub use seeds::SEED_TOLERANCE;
 
-use crate::cpu::solve::Decider;
 use crate::error::{Error, Result};
 use crate::expr::spec::check_box;
 use crate::expr::ImplicitFunction;
-use crate::triangulation::{KeyCodec, KeySet, Simplex, Triangulation};
+use crate::triangulation::{KeyCodec, Triangulation};
 use engine::Engine;
-use rayon::prelude::*;
 
 /// Box samples for the automatic seed search when no seed is given.
 pub const DEFAULT_SEARCH_SAMPLES: usize = 512;
@@ -194,265 +195,6 @@ pub struct TraceStats {
     pub stopped: Option<StopReason>,
 }
 
-/// The sample S: crossed k-simplices (as compact keys) with their points, in a deterministic
-/// order (trace: level by level, sorted within a level; scan: sorted keys).
-///
-/// S stores keys, not points: it keeps the values of f at the lattice vertices of its
-/// simplices, and a point is the intersection test run again on them (the same f64
-/// arithmetic as the trace, so the same bits, whichever backend traced). That is 8 d bytes
-/// per simplex less to hold; [`Sample::points`] computes them all when needed.
-///
-/// ```
-/// use isomesh::Mesher;
-///
-/// let circle = Mesher::preset("circle", &[])?.trace()?;
-/// let s = circle.sample();
-/// assert_eq!((s.ambient_dim(), s.codim()), (2, 1));
-/// // Each entry is a crossed 1-simplex, named by its key, and the point where M crosses it.
-/// let (simplex, point) = s.iter().next().unwrap();
-/// assert_eq!(simplex.dim(), 1);
-/// assert!((point[0].hypot(point[1]) - 1.0).abs() < 1e-2);
-/// assert_eq!(s.key(0).len(), s.codec().words());
-/// # Ok::<(), isomesh::Error>(())
-/// ```
-#[derive(Clone, Debug)]
-pub struct Sample {
-    codec: KeyCodec,
-    stride: usize,
-    keys: Vec<u64>,
-    vertices: KeySet,
-    values: Vec<f64>,
-    tri: Triangulation,
-    rim_keys: Vec<u64>,
-    rim_points: Vec<f64>,
-    /// What it took.
-    pub stats: TraceStats,
-}
-
-/// Work space for computing points of a sample.
-struct PointWork {
-    decider: Decider,
-    values: Vec<f64>,
-    lambda: Vec<f64>,
-    vkey: Vec<u64>,
-}
-
-impl Sample {
-    /// Number of crossed k-simplices.
-    pub fn len(&self) -> usize {
-        self.keys.len() / self.stride
-    }
-    /// Whether S is empty.
-    pub fn is_empty(&self) -> bool {
-        self.keys.is_empty()
-    }
-    /// d.
-    pub fn ambient_dim(&self) -> usize {
-        self.codec.ambient_dim()
-    }
-    /// k.
-    pub fn codim(&self) -> usize {
-        self.codec.simplex_dim()
-    }
-    /// The codec of the keys.
-    pub fn codec(&self) -> &KeyCodec {
-        &self.codec
-    }
-    /// The triangulation the simplices belong to.
-    pub fn triangulation(&self) -> &Triangulation {
-        &self.tri
-    }
-    /// Key `i` (`codec().words()` words).
-    pub fn key(&self, i: usize) -> &[u64] {
-        &self.keys[i * self.stride..i * self.stride + self.codec.words()]
-    }
-    /// Simplex `i`.
-    pub fn simplex(&self, i: usize) -> Simplex {
-        self.codec.decode(self.key(i))
-    }
-
-    fn point_work(&self) -> PointWork {
-        let k = self.codim();
-        PointWork {
-            decider: Decider::new(k),
-            values: vec![0.0; (k + 1) * k],
-            lambda: vec![0.0; k + 1],
-            vkey: vec![0; self.codec.words()],
-        }
-    }
-
-    /// Point `i` into `out` (d coordinates).
-    fn point_into(&self, i: usize, w: &mut PointWork, out: &mut [f64]) {
-        let k = self.codim();
-        let s = self.simplex(i);
-        let mut found = true;
-        s.for_each_vertex(|j, v| {
-            let at = match self.codec.encode_vertex(v, &mut w.vkey) {
-                Ok(()) => self.vertices.find(&w.vkey),
-                Err(_) => None,
-            };
-            match at {
-                Some(a) => {
-                    w.values[j * k..(j + 1) * k].copy_from_slice(&self.values[a * k..(a + 1) * k])
-                }
-                None => found = false,
-            }
-        });
-        if !found || !w.decider.decide(&w.values, &mut w.lambda).status.crossed() {
-            // Not reachable for a sample built by a trace or a scan.
-            out.fill(f64::NAN);
-            return;
-        }
-        self.tri
-            .barycentric_point(&w.lambda, |j, v| s.vertex_into(j, v), out);
-    }
-
-    /// Point `i` (d coordinates): where M-hat crosses simplex `i`.
-    pub fn point(&self, i: usize) -> Vec<f64> {
-        let mut out = vec![0.0; self.ambient_dim()];
-        self.point_into(i, &mut self.point_work(), &mut out);
-        out
-    }
-
-    /// All points, d per simplex, computed in parallel.
-    pub fn points(&self) -> Vec<f64> {
-        let d = self.ambient_dim();
-        let mut out = vec![0.0; self.len() * d];
-        out.par_chunks_mut(256 * d).enumerate().for_each_init(
-            || self.point_work(),
-            |w, (c, chunk)| {
-                for (j, p) in chunk.chunks_exact_mut(d).enumerate() {
-                    self.point_into(c * 256 + j, w, p);
-                }
-            },
-        );
-        out
-    }
-
-    /// How many crossings look like a jump of f rather than a zero: for some component c,
-    /// |f_c| at the crossing point is more than half the spread of f_c's values at the
-    /// simplex's vertices (max - min), or is not finite, while that spread is not small (at
-    /// least its median over S).
-    ///
-    /// Where f is smooth and the edge fine, |f| at the point is second order in the edge and
-    /// the spread first order: on the presets at their default edges the ratio stays under
-    /// 0.25. Simplices lying almost within M have a second-order spread too: the median test
-    /// leaves them out. Across a pole (1/x) or a jump (sign(x)) f is large on both sides,
-    /// and S then holds a sheet where f changes sign without a zero. `f` is the function the
-    /// sample was traced for.
-    pub fn suspect_crossings(&self, f: &dyn ImplicitFunction) -> usize {
-        const CHUNK: usize = 256;
-        let (d, k) = (self.ambient_dim(), self.codim());
-        let n = self.len();
-        // Per crossing and component: the spread of the vertex values, negated where |f| at
-        // the point exceeds half of it, NaN where the point is unknown.
-        let marked: Vec<f64> = (0..n.div_ceil(CHUNK))
-            .into_par_iter()
-            .map_init(
-                || self.point_work(),
-                |w, c| {
-                    let range = c * CHUNK..((c + 1) * CHUNK).min(n);
-                    let mut points = vec![0.0; range.len() * d];
-                    let mut spread = vec![0.0f64; range.len() * k];
-                    let mut low = vec![f64::INFINITY; k];
-                    for (i, (p, m)) in range
-                        .clone()
-                        .zip(points.chunks_exact_mut(d).zip(spread.chunks_exact_mut(k)))
-                    {
-                        self.point_into(i, w, p);
-                        low.fill(f64::INFINITY);
-                        m.fill(f64::NEG_INFINITY);
-                        for row in w.values.chunks_exact(k) {
-                            for ((l, h), v) in low.iter_mut().zip(m.iter_mut()).zip(row) {
-                                *l = l.min(*v);
-                                *h = h.max(*v);
-                            }
-                        }
-                        m.iter_mut().zip(&low).for_each(|(h, l)| *h -= l);
-                    }
-                    let mut at = vec![0.0; range.len() * k];
-                    f.eval_batch(&points, &mut at);
-                    for ((m, a), p) in spread
-                        .chunks_exact_mut(k)
-                        .zip(at.chunks_exact(k))
-                        .zip(points.chunks_exact(d))
-                    {
-                        for (m, a) in m.iter_mut().zip(a) {
-                            if !p[0].is_finite() {
-                                *m = f64::NAN;
-                            } else if a.is_nan() || a.abs() > 0.5 * *m {
-                                *m = -*m;
-                            }
-                        }
-                    }
-                    spread
-                },
-            )
-            .flatten_iter()
-            .collect();
-        let medians: Vec<f64> = (0..k)
-            .map(|c| {
-                let mut v: Vec<f64> = marked
-                    .iter()
-                    .skip(c)
-                    .step_by(k)
-                    .filter(|x| !x.is_nan())
-                    .map(|x| x.abs())
-                    .collect();
-                if v.is_empty() {
-                    return 0.0;
-                }
-                let mid = v.len() / 2;
-                *v.select_nth_unstable_by(mid, f64::total_cmp).1
-            })
-            .collect();
-        marked
-            .chunks_exact(k)
-            .filter(|m| {
-                m.iter()
-                    .zip(&medians)
-                    .any(|(x, med)| x.is_sign_negative() && -x >= *med)
-            })
-            .count()
-    }
-
-    /// (simplex, point) pairs in order.
-    pub fn iter(&self) -> impl Iterator<Item = (Simplex, Vec<f64>)> + '_ {
-        let mut w = self.point_work();
-        (0..self.len()).map(move |i| {
-            let mut p = vec![0.0; self.ambient_dim()];
-            self.point_into(i, &mut w, &mut p);
-            (self.simplex(i), p)
-        })
-    }
-    /// Number of rim simplices: crossed k-simplices next to S whose points lie outside the
-    /// domain (box, boundary inequalities). The cell complex clips its cells with them.
-    pub fn rim_len(&self) -> usize {
-        self.rim_points.len() / self.ambient_dim()
-    }
-    /// Rim key `i`.
-    pub fn rim_key(&self, i: usize) -> &[u64] {
-        &self.rim_keys[i * self.stride..i * self.stride + self.codec.words()]
-    }
-    /// Rim point `i`.
-    pub fn rim_point(&self, i: usize) -> &[f64] {
-        let d = self.ambient_dim();
-        &self.rim_points[i * d..(i + 1) * d]
-    }
-    /// The keys in sorted order (to compare samples as sets).
-    pub fn sorted_keys(&self) -> Vec<&[u64]> {
-        let mut v: Vec<&[u64]> = (0..self.len()).map(|i| self.key(i)).collect();
-        v.sort_unstable();
-        v
-    }
-    /// Bytes held: keys, vertex keys and values, rim.
-    pub fn memory_bytes(&self) -> usize {
-        (self.keys.capacity() + self.rim_keys.capacity()) * 8
-            + self.vertices.memory_bytes()
-            + (self.values.capacity() + self.rim_points.capacity()) * 8
-    }
-}
-
 /// What the engine and the scan share.
 pub(crate) struct TraceContext<'a> {
     pub tri: &'a Triangulation,
@@ -535,34 +277,6 @@ fn context<'a>(
         progress: opts.progress,
         #[cfg(test)]
         scramble_pivots: false,
-    })
-}
-
-fn sample_from<const W: usize>(
-    codec: KeyCodec,
-    tri: &Triangulation,
-    engine: Engine<W>,
-    stats: TraceStats,
-) -> Result<Sample> {
-    let words = codec.words();
-    let verts = engine.verts.into_words();
-    let mut vertices = KeySet::new(words);
-    vertices.reserve(verts.len() / W);
-    for v in verts.chunks_exact(W) {
-        vertices.insert_new(&v[..words])?;
-    }
-    let mut keys = engine.s.into_words();
-    keys.shrink_to_fit();
-    Ok(Sample {
-        codec,
-        stride: W,
-        keys,
-        vertices,
-        values: engine.values,
-        tri: tri.clone(),
-        rim_keys: engine.rim.into_words(),
-        rim_points: engine.rim_points,
-        stats,
     })
 }
 
