@@ -2,7 +2,7 @@
 # Mutation testing of one module with cargo-mutants (`cargo install --locked cargo-mutants`).
 #
 #   scripts/mutants.sh FILE [SHARD] [extra cargo-mutants options]
-#   scripts/mutants.sh src/cpu/decide.rs 0/20      # one twentieth of decide.rs's mutants
+#   scripts/mutants.sh src/cpu/solve.rs 0/20       # one twentieth of solve.rs's mutants
 #
 # Each mutant rebuilds the crate and runs the tests that guard FILE (the unit tests, plus
 # the integration test named below when MUTANTS_FULL=1; only those targets are built). It
