@@ -652,7 +652,7 @@ fn sections_of_closed_3_manifolds_are_closed_surfaces() {
     assert_eq!(section_topology(&s), (2, 1));
     // Every corner on the hyperplane, and on S^3 up to the mesh's error.
     let n = [0.0, 0.0, 0.0, 1.0];
-    let s = Section::of(&c, &n, 0.3);
+    let s = Section::of(&c, &n, 0.3).unwrap();
     assert_eq!(section_topology(&s), (2, 1));
     for x in s.points.chunks_exact(4) {
         assert!((x[3] - 0.3).abs() < 1e-12, "{x:?}");
@@ -660,10 +660,12 @@ fn sections_of_closed_3_manifolds_are_closed_surfaces() {
         assert!((r - 1.0).abs() < 0.05, "{x:?}");
     }
     // Missing the sphere: nothing.
-    assert!(Section::of(&c, &n, 1.5).polygons.is_empty());
+    assert!(Section::of(&c, &n, 1.5).unwrap().polygons.is_empty());
+    // A normal of the wrong dimension is an error, not a panic.
+    assert!(Section::of(&c, &[1.0, 0.0], 0.0).is_err());
     // The 3-torus by x6 = 0 (c sin t3 = 0, so t3 = 0 or pi): two 2-tori.
     let c = build(&problem("3-torus", &[("edge", 0.5)]));
-    let s = Section::of(&c, &[0.0, 0.0, 0.0, 0.0, 0.0, 1.0], 0.0);
+    let s = Section::of(&c, &[0.0, 0.0, 0.0, 0.0, 0.0, 1.0], 0.0).unwrap();
     assert_eq!(s.skipped, 0);
     assert_eq!(section_topology(&s), (0, 2));
 }

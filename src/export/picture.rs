@@ -4,6 +4,7 @@
 //! [`Section`] by the hyperplane through its centre, normal to its least-varying axis (every
 //! edge at once is a solid blob).
 
+use std::borrow::Cow;
 use std::path::Path;
 
 use super::mesh::Mesh;
@@ -77,14 +78,14 @@ impl Picture {
             Some(s) => {
                 let view = View::new(&Projection::Auto, &s.points, d);
                 (
-                    view.apply_all(&s.points),
-                    s.triangles(),
+                    Cow::Owned(view.apply_all(&s.points)),
+                    Cow::Owned(s.triangles()),
                     "section by a hyperplane; PCA view",
                 )
             }
             None => (
-                mesh.xyz.clone(),
-                mesh.triangles.clone(),
+                Cow::Borrowed(&mesh.xyz[..]),
+                Cow::Borrowed(&mesh.triangles[..]),
                 if mesh.view.description.starts_with("pca") {
                     "PCA view"
                 } else {
@@ -130,7 +131,7 @@ impl Picture {
             })
             .collect();
         if !triangles.is_empty() {
-            for t in &triangles {
+            for t in triangles.iter() {
                 let [a, b, c] = t.map(|v| cam[v as usize]);
                 let raw = unit(cross(
                     [b[0] - a[0], b[1] - a[1], b[2] - a[2]],

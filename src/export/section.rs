@@ -10,6 +10,7 @@
 //! section of a closed 3-manifold by such a hyperplane is a closed surface.
 
 use crate::complex::Complex;
+use crate::error::{Error, Result};
 use crate::linalg::symmetric_eigen;
 
 /// Polygons in R^d: the section of a complex by a hyperplane.
@@ -27,10 +28,16 @@ pub struct Section {
 }
 
 impl Section {
-    /// The section of the 3-cells of `c` by `{x : <normal, x> = offset}`.
-    pub fn of(c: &Complex, normal: &[f64], offset: f64) -> Section {
+    /// The section of the 3-cells of `c` by `{x : <normal, x> = offset}`; an error when the
+    /// normal has not d coordinates.
+    pub fn of(c: &Complex, normal: &[f64], offset: f64) -> Result<Section> {
         let d = c.ambient_dim();
-        assert_eq!(normal.len(), d, "a normal of R^{d}");
+        if normal.len() != d {
+            return Err(Error::DimensionMismatch(format!(
+                "a section normal has {} coordinates, the complex lies in R^{d}",
+                normal.len()
+            )));
+        }
         let pts = c.points();
         let height: Vec<f64> = pts
             .chunks_exact(d)
@@ -41,7 +48,7 @@ impl Section {
             ..Section::default()
         };
         if c.dim() < 3 {
-            return out;
+            return Ok(out);
         }
         // 1-cells: the point where each cut one is crossed.
         let edges = c.level(1);
@@ -92,7 +99,7 @@ impl Section {
                 None => out.skipped += 1,
             }
         }
-        out
+        Ok(out)
     }
 
     /// The section by the hyperplane through the centroid of `c`'s vertices, normal to the
@@ -102,7 +109,7 @@ impl Section {
         let (centre, axes) = principal_axes(c.points(), d);
         let normal = &axes[(d - 1) * d..];
         let offset = normal.iter().zip(&centre).map(|(a, b)| a * b).sum();
-        Section::of(c, normal, offset)
+        Section::of(c, normal, offset).expect("a normal of R^d")
     }
 
     /// The polygons as fan triangles.
