@@ -15,7 +15,7 @@ VENV="${ISOMESH_VENV:-$CARGO_TARGET_DIR/python-venv}"
 rm -rf "$VENV"
 python3 -m venv "$VENV"
 "$VENV/bin/python" -m pip install --quiet --upgrade pip
-"$VENV/bin/python" -m pip install --quiet pytest numpy meshio trimesh
+"$VENV/bin/python" -m pip install --quiet pytest numpy meshio trimesh "dask[distributed]"
 # The wheel is built with the dev profile (opt-level 2 like the tests): the isomesh crate and
 # every dependency that the Rust tests compiled are reused; only pyo3, numpy and the bindings
 # compile here.

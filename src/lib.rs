@@ -64,6 +64,7 @@ pub mod linalg;
 pub mod memory;
 pub mod mesher;
 pub mod report;
+pub mod shard;
 pub mod trace;
 pub mod triangulation;
 

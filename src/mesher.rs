@@ -82,6 +82,7 @@ pub struct Mesher {
     cancel: Option<Arc<AtomicBool>>,
     progress: Option<Arc<ProgressFn>>,
     warm: bool,
+    key_box: Option<Vec<[f64; 2]>>,
 }
 
 impl std::fmt::Debug for Mesher {
@@ -170,6 +171,7 @@ impl Mesher {
             cancel: None,
             progress: None,
             warm: false,
+            key_box: None,
         }
     }
 
@@ -276,6 +278,28 @@ impl Mesher {
         self
     }
 
+    /// Size keys for this box instead of the run's box: scans of parts of one box that give
+    /// it the whole box name every simplex alike (see [`crate::shard`]).
+    pub fn key_box(mut self, bbox: Vec<[f64; 2]>) -> Self {
+        self.key_box = Some(bbox);
+        self
+    }
+
+    /// The box of a run, if one was given.
+    pub fn domain_box(&self) -> Option<&[[f64; 2]]> {
+        self.bbox.as_deref()
+    }
+
+    /// The memory limit of a run, bytes.
+    pub fn memory_limit(&self) -> u64 {
+        self.max_memory
+    }
+
+    /// f, shared.
+    pub fn shared_function(&self) -> Arc<dyn ImplicitFunction> {
+        self.function.clone()
+    }
+
     /// d.
     pub fn ambient_dim(&self) -> usize {
         self.function.ambient_dim()
@@ -339,6 +363,7 @@ impl Mesher {
             cancel: self.cancel.clone(),
             progress: Some(&report_progress),
             warm: self.warm,
+            key_box: self.key_box.clone(),
         };
         let cpu = CpuOracle::new(f);
         #[cfg(feature = "gpu")]
@@ -535,43 +560,75 @@ impl Manifold {
         let path = path.as_ref();
         match OutputFormat::for_path(path, opts.format.as_deref())? {
             OutputFormat::Sample(format) => write_sample(path, &self.sample, format),
-            OutputFormat::Mesh(format) => {
-                let c = self.complex()?;
-                format.check_holds(c.dim(), path)?;
-                let mesh = self.mesh(c, opts.projection.as_deref())?;
-                let encoding = if opts.ascii {
-                    Encoding::Ascii
-                } else {
-                    Encoding::Binary
-                };
-                write_mesh_as(path, &mesh, format, encoding)
-            }
+            OutputFormat::Mesh(_) => write_complex(
+                self.complex()?,
+                Some(self.function()),
+                &self.report.name,
+                path,
+                opts,
+            ),
         }
     }
 
     /// Draws the mesh into a PNG picture of `width` x `height` pixels.
     pub fn picture(&self, path: impl AsRef<Path>, width: usize, height: usize) -> Result<()> {
         let (c, t, _) = self.built()?;
-        let mesh = self.mesh(c, None)?;
-        let caption = format!(
-            "{}: {}-manifold in R^{}, chi = {}",
-            self.report.name,
-            t.dim,
-            c.ambient_dim(),
-            t.euler_characteristic
-        );
-        Picture::render(&mesh, width, height, &caption)?.write_png(path.as_ref())
+        let f = Some(self.function());
+        picture_complex(c, t, f, &self.report.name, path.as_ref(), width, height)
     }
+}
 
-    fn mesh<'a>(&'a self, c: &'a Complex, projection: Option<&str>) -> Result<Mesh<'a>> {
-        let projection = Projection::parse(projection.unwrap_or("auto"), c.ambient_dim())?;
-        Ok(Mesh::new(
-            c,
-            Some(&*self.function),
-            &projection,
-            &self.report.name,
-        ))
-    }
+/// Writes the cell complex `c` of f (orienting its cells, where given) as the mesh format
+/// of `path`'s extension or `opts.format` (`.ply`, `.obj`, `.off`, `.stl`, `.mesh`, `.vtu`,
+/// `.npz`); `name` goes in the file's header.
+pub fn write_complex(
+    c: &Complex,
+    f: Option<&dyn ImplicitFunction>,
+    name: &str,
+    path: &Path,
+    opts: &WriteOptions,
+) -> Result<()> {
+    let OutputFormat::Mesh(format) = OutputFormat::for_path(path, opts.format.as_deref())? else {
+        return Err(Error::Output(format!(
+            "{}: a cell complex is written as a mesh (.ply, .obj, .off, .stl, .mesh, .vtu, \
+             .npz), not as points",
+            path.display()
+        )));
+    };
+    format.check_holds(c.dim(), path)?;
+    let projection = Projection::parse(
+        opts.projection.as_deref().unwrap_or("auto"),
+        c.ambient_dim(),
+    )?;
+    let mesh = Mesh::new(c, f, &projection, name);
+    let encoding = if opts.ascii {
+        Encoding::Ascii
+    } else {
+        Encoding::Binary
+    };
+    write_mesh_as(path, &mesh, format, encoding)
+}
+
+/// Draws the cell complex `c` (with its topology `t`) into a PNG picture of `width` x
+/// `height` pixels, captioned with `name`.
+pub fn picture_complex(
+    c: &Complex,
+    t: &Topology,
+    f: Option<&dyn ImplicitFunction>,
+    name: &str,
+    path: &Path,
+    width: usize,
+    height: usize,
+) -> Result<()> {
+    let projection = Projection::parse("auto", c.ambient_dim())?;
+    let mesh = Mesh::new(c, f, &projection, name);
+    let caption = format!(
+        "{name}: {}-manifold in R^{}, chi = {}",
+        t.dim,
+        c.ambient_dim(),
+        t.euler_characteristic
+    );
+    Picture::render(&mesh, width, height, &caption)?.write_png(path)
 }
 
 impl std::fmt::Debug for Manifold {

@@ -9,5 +9,6 @@ dimension and codimension, traced on Coxeter triangulations.
 """
 
 from ._isomesh import Complex, Problem, Sample, __version__, presets
+from . import distributed
 
-__all__ = ["Complex", "Problem", "Sample", "presets", "__version__"]
+__all__ = ["Complex", "Problem", "Sample", "distributed", "presets", "__version__"]

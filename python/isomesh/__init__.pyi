@@ -6,6 +6,8 @@ from typing import Any, Callable, Literal, Mapping, Optional, Sequence, Union
 import numpy as np
 import numpy.typing as npt
 
+from . import distributed as distributed
+
 __version__: str
 
 Backend = Literal["cpu", "gpu", "auto"]

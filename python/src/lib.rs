@@ -4,6 +4,7 @@
 mod callable;
 mod problem;
 mod result;
+mod shard;
 
 use pyo3::exceptions::{
     PyFileNotFoundError, PyOSError, PyPermissionError, PyRuntimeError, PyValueError,
@@ -61,6 +62,10 @@ fn _isomesh(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<result::Sample>()?;
     m.add_class::<result::Complex>()?;
     m.add_function(wrap_pyfunction!(presets, m)?)?;
+    m.add_function(wrap_pyfunction!(shard::_problem_from_recipe, m)?)?;
+    m.add_function(wrap_pyfunction!(shard::_split_count, m)?)?;
+    m.add_function(wrap_pyfunction!(shard::_shard_grid, m)?)?;
+    m.add_function(wrap_pyfunction!(shard::_uniform_cuts, m)?)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     Ok(())
 }

@@ -38,6 +38,8 @@ pub struct Problem {
     equations: Option<Vec<String>>,
     callable: Option<Arc<PyFunction>>,
     stop: Arc<AtomicBool>,
+    /// How to make this problem again, (constructor, keywords): what pickling sends.
+    recipe: Py<PyAny>,
 }
 
 /// Triangulation settings given as keywords.
@@ -126,8 +128,9 @@ fn check_box(bbox: &[[f64; 2]], d: usize) -> PyResult<()> {
 }
 
 impl Problem {
-    fn from_problem(p: isomesh::expr::Problem, equations: Vec<String>) -> Self {
+    fn from_problem(p: isomesh::expr::Problem, equations: Vec<String>, recipe: Py<PyAny>) -> Self {
         Problem {
+            recipe,
             name: p.name.clone(),
             seeds: p.seeds.clone(),
             bbox: p.bbox.clone(),
@@ -277,6 +280,7 @@ impl Problem {
         triangulation=None, offset_seed=None, rotation_seed=None, rotate=None, name=None))]
     #[allow(clippy::too_many_arguments)]
     fn new(
+        py: Python<'_>,
         equations: Option<Bound<'_, PyAny>>,
         function: Option<Bound<'_, PyAny>>,
         ambient_dim: Option<usize>,
@@ -293,6 +297,23 @@ impl Problem {
         rotate: Option<bool>,
         name: Option<String>,
     ) -> PyResult<Self> {
+        let keywords = PyDict::new(py);
+        keywords.set_item("equations", &equations)?;
+        keywords.set_item("function", &function)?;
+        keywords.set_item("ambient_dim", ambient_dim)?;
+        keywords.set_item("codim", codim)?;
+        keywords.set_item("variables", &variables)?;
+        keywords.set_item("parameters", &parameters)?;
+        keywords.set_item("boundary", &boundary)?;
+        keywords.set_item("seeds", &seeds)?;
+        keywords.set_item("box", &r#box)?;
+        keywords.set_item("edge", edge)?;
+        keywords.set_item("triangulation", &triangulation)?;
+        keywords.set_item("offset_seed", offset_seed)?;
+        keywords.set_item("rotation_seed", rotation_seed)?;
+        keywords.set_item("rotate", rotate)?;
+        keywords.set_item("name", &name)?;
+        let recipe = ("new", keywords).into_pyobject(py)?.into_any().unbind();
         let tri = TriKeywords {
             edge,
             kind: triangulation,
@@ -350,7 +371,7 @@ impl Problem {
                 let p = spec
                     .resolve(name.as_deref().unwrap_or("problem"))
                     .map_err(to_py)?;
-                Ok(Problem::from_problem(p, equations))
+                Ok(Problem::from_problem(p, equations, recipe))
             }
             (None, Some(f)) => {
                 if !f.is_callable() {
@@ -402,6 +423,7 @@ impl Problem {
                     equations: None,
                     callable: Some(callable),
                     stop,
+                    recipe,
                 })
             }
         }
@@ -414,6 +436,7 @@ impl Problem {
         rotation_seed=None, rotate=None, **params))]
     #[allow(clippy::too_many_arguments)]
     fn preset(
+        py: Python<'_>,
         name: &str,
         seeds: Option<Vec<Vec<f64>>>,
         r#box: Option<Vec<[f64; 2]>>,
@@ -423,6 +446,18 @@ impl Problem {
         rotate: Option<bool>,
         params: Option<&Bound<'_, PyDict>>,
     ) -> PyResult<Self> {
+        let keywords = match params {
+            Some(p) => p.copy()?,
+            None => PyDict::new(py),
+        };
+        keywords.set_item("name", name)?;
+        keywords.set_item("seeds", &seeds)?;
+        keywords.set_item("box", &r#box)?;
+        keywords.set_item("triangulation", &triangulation)?;
+        keywords.set_item("offset_seed", offset_seed)?;
+        keywords.set_item("rotation_seed", rotation_seed)?;
+        keywords.set_item("rotate", rotate)?;
+        let recipe = ("preset", keywords).into_pyobject(py)?.into_any().unbind();
         let mut overrides = Vec::new();
         if let Some(p) = params {
             for (k, v) in p.iter() {
@@ -455,32 +490,48 @@ impl Problem {
         spec.triangulation = Some(t);
         let equations = spec.equations.clone();
         let p = spec.resolve(name).map_err(to_py)?;
-        Ok(Problem::from_problem(p, equations))
+        Ok(Problem::from_problem(p, equations, recipe))
     }
 
     /// A spec file in the CLI's TOML format (a path), or its text.
     #[staticmethod]
     #[pyo3(signature = (source, name=None))]
-    fn from_toml(source: &Bound<'_, PyAny>, name: Option<String>) -> PyResult<Self> {
+    fn from_toml(
+        py: Python<'_>,
+        source: &Bound<'_, PyAny>,
+        name: Option<String>,
+    ) -> PyResult<Self> {
         let text: Option<String> = source
             .cast::<PyString>()
             .ok()
             .map(|s| s.to_string())
             .filter(|s| s.contains('\n') || s.contains('='));
-        let (spec, stem) = match text {
-            Some(t) => (Spec::from_toml(&t).map_err(to_py)?, "spec".to_string()),
+        let (spec, stem, text) = match text {
+            Some(t) => (Spec::from_toml(&t).map_err(to_py)?, "spec".to_string(), t),
             None => {
                 let path: std::path::PathBuf = source.extract()?;
                 let stem = path
                     .file_stem()
                     .map(|s| s.to_string_lossy().into_owned())
                     .unwrap_or_default();
-                (Spec::from_file(&path).map_err(to_py)?, stem)
+                let spec = Spec::from_file(&path).map_err(to_py)?;
+                // The text travels with a pickled problem: the file need not be where it goes.
+                let text = std::fs::read_to_string(&path)
+                    .map_err(|e| to_py(Error::io(path.display().to_string(), e)))?;
+                (spec, stem, text)
             }
         };
+        let name = name.unwrap_or(stem);
+        let keywords = PyDict::new(py);
+        keywords.set_item("source", text)?;
+        keywords.set_item("name", &name)?;
+        let recipe = ("from_toml", keywords)
+            .into_pyobject(py)?
+            .into_any()
+            .unbind();
         let equations = spec.equations.clone();
-        let p = spec.resolve(&name.unwrap_or(stem)).map_err(to_py)?;
-        Ok(Problem::from_problem(p, equations))
+        let p = spec.resolve(&name).map_err(to_py)?;
+        Ok(Problem::from_problem(p, equations, recipe))
     }
 
     /// Traces M from the seeds (or from points found in the box) on the given backend
@@ -563,6 +614,87 @@ impl Problem {
     #[getter]
     fn edge(&self) -> PyResult<f64> {
         Ok(self.mesher.build_triangulation().map_err(to_py)?.edge())
+    }
+
+    /// Pickling (for Dask and multiprocessing): the problem is made again from what it was
+    /// made from (a Python function travels by reference, as pickle or cloudpickle sends it).
+    fn __reduce__<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        let rebuild = py
+            .import("isomesh._isomesh")?
+            .getattr("_problem_from_recipe")?;
+        (rebuild, (self.recipe.clone_ref(py),))
+            .into_pyobject(py)
+            .map(|t| t.into_any())
+    }
+
+    /// One shard of a sharded scan of `box` (see `isomesh.distributed`): the part of the
+    /// scan of [lo, hi) widened by `halo` that the shard owns, as a dict of NumPy arrays.
+    #[pyo3(signature = (r#box, lo, hi, closed, halo=None, *, backend="cpu", threads=None,
+        precision=None, max_memory=None))]
+    #[allow(clippy::too_many_arguments)]
+    fn _scan_shard<'py>(
+        &self,
+        py: Python<'py>,
+        r#box: Vec<[f64; 2]>,
+        lo: Vec<f64>,
+        hi: Vec<f64>,
+        closed: Vec<bool>,
+        halo: Option<f64>,
+        backend: &str,
+        threads: Option<usize>,
+        precision: Option<&str>,
+        max_memory: Option<u64>,
+    ) -> PyResult<Bound<'py, PyDict>> {
+        let m = self.mesher(None, Some(r#box), backend, threads, precision, max_memory)?;
+        let shard = isomesh::shard::Shard { lo, hi, closed };
+        self.stop.store(false, Ordering::Relaxed);
+        if let Some(c) = &self.callable {
+            c.reset();
+        }
+        let part = py.detach(|| -> isomesh::Result<_> {
+            let halo = match halo {
+                Some(h) => h,
+                None => isomesh::shard::default_halo(&m)?,
+            };
+            isomesh::shard::scan(&m, &shard, halo)
+        });
+        if let Some(e) = self.callable.as_ref().and_then(|c| c.take_error()) {
+            return Err(e);
+        }
+        crate::shard::part_to_py(py, &part.map_err(to_py)?)
+    }
+
+    /// The default halo of a sharded scan: 1.1 times the triangulation's longest edge.
+    fn _default_halo(&self) -> PyResult<f64> {
+        isomesh::shard::default_halo(&self.mesher).map_err(to_py)
+    }
+
+    /// Assembles the parts of every shard of a sharded scan: (keys, points, Complex).
+    fn _assemble<'py>(
+        &self,
+        py: Python<'py>,
+        parts: Vec<Bound<'py, PyDict>>,
+    ) -> PyResult<Bound<'py, PyAny>> {
+        let parts = parts
+            .iter()
+            .map(crate::shard::part_from_py)
+            .collect::<PyResult<Vec<_>>>()?;
+        let all = py
+            .detach(|| isomesh::shard::assemble(&parts))
+            .map_err(to_py)?;
+        let n = all.keys.len() / all.key_words.max(1);
+        let d = self.mesher.ambient_dim();
+        let keys = crate::result::array2(py, n, all.key_words, all.keys)?;
+        let points = crate::result::array2(py, n, d, all.points)?;
+        let complex = crate::result::Complex::assembled(
+            all.complex,
+            self.mesher.shared_function(),
+            self.name.clone(),
+            self.callable.clone(),
+        );
+        (keys, points, complex)
+            .into_pyobject(py)
+            .map(|t| t.into_any())
     }
 
     fn __repr__(&self) -> String {

@@ -2,9 +2,13 @@
 //! cell complex built from them), with NumPy arrays and every output format of the CLI.
 
 use std::path::PathBuf;
-use std::sync::Arc;
+use std::sync::{Arc, OnceLock};
+use std::time::Instant;
 
+use isomesh::complex::Topology;
 use isomesh::export::{Mesh, Projection};
+use isomesh::expr::ImplicitFunction;
+use isomesh::mesher::{picture_complex, write_complex};
 use isomesh::{Manifold, WriteOptions};
 use numpy::ndarray::{Array1, Array2};
 use numpy::{IntoPyArray, PyArray1, PyArray2};
@@ -56,7 +60,7 @@ fn released<T: Send>(
     r.map_err(to_py)
 }
 
-fn array2<'py, T: numpy::Element>(
+pub(crate) fn array2<'py, T: numpy::Element>(
     py: Python<'py>,
     rows: usize,
     cols: usize,
@@ -135,7 +139,7 @@ impl Sample {
         let inner = self.inner.clone();
         released(py, &self.callable, move || inner.complex().map(|_| ()))?;
         Ok(Complex {
-            inner: self.inner.clone(),
+            inner: Source::Run(self.inner.clone()),
             name: self.name.clone(),
             callable: self.callable.clone(),
         })
@@ -171,16 +175,78 @@ impl Sample {
 /// Hasse diagram), topology, meshes.
 #[pyclass(module = "isomesh", frozen)]
 pub struct Complex {
-    inner: Arc<Manifold>,
+    inner: Source,
     name: String,
     callable: Option<Arc<PyFunction>>,
 }
 
+/// Where a complex comes from: a run, or an assembly of a sharded scan's parts.
+enum Source {
+    Run(Arc<Manifold>),
+    Assembled(Arc<Assembled>),
+}
+
+/// An assembled complex, with f (to orient its cells) and its topology once asked for.
+pub(crate) struct Assembled {
+    pub complex: isomesh::complex::Complex,
+    pub function: Arc<dyn ImplicitFunction>,
+    pub topology: OnceLock<(Topology, f64)>,
+}
+
+impl Assembled {
+    fn topology(&self) -> &(Topology, f64) {
+        self.topology.get_or_init(|| {
+            let t0 = Instant::now();
+            let t = self.complex.topology();
+            (t, t0.elapsed().as_secs_f64())
+        })
+    }
+}
+
 impl Complex {
+    /// The complex of a sharded scan, assembled.
+    pub(crate) fn assembled(
+        complex: isomesh::complex::Complex,
+        function: Arc<dyn ImplicitFunction>,
+        name: String,
+        callable: Option<Arc<PyFunction>>,
+    ) -> Self {
+        Complex {
+            inner: Source::Assembled(Arc::new(Assembled {
+                complex,
+                function,
+                topology: OnceLock::new(),
+            })),
+            name,
+            callable,
+        }
+    }
+
     fn get(&self) -> &isomesh::complex::Complex {
-        self.inner
-            .complex()
-            .expect("a Complex is made after its build succeeded")
+        match &self.inner {
+            Source::Run(m) => m
+                .complex()
+                .expect("a Complex is made after its build succeeded"),
+            Source::Assembled(a) => &a.complex,
+        }
+    }
+
+    fn function(&self) -> &dyn ImplicitFunction {
+        match &self.inner {
+            Source::Run(m) => m.function(),
+            Source::Assembled(a) => &*a.function,
+        }
+    }
+
+    /// The topology and the seconds it took.
+    fn topology_and_time(&self) -> isomesh::Result<(&Topology, Option<f64>)> {
+        match &self.inner {
+            Source::Run(m) => Ok((m.topology()?, m.report().complex.map(|r| r.topology_s))),
+            Source::Assembled(a) => {
+                let (t, secs) = a.topology();
+                Ok((t, Some(*secs)))
+            }
+        }
     }
 
     fn mesh_then<T: Send>(
@@ -192,7 +258,7 @@ impl Complex {
         let c = self.get();
         let d = c.ambient_dim();
         let projection = Projection::parse(projection, d).map_err(to_py)?;
-        let (name, f) = (self.name.clone(), self.inner.function());
+        let (name, f) = (self.name.clone(), self.function());
         released(py, &self.callable, move || {
             let mesh = Mesh::new(c, Some(f), &projection, &name);
             work(&mesh)
@@ -279,8 +345,7 @@ impl Complex {
     #[getter]
     fn topology<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
         let c = self.get();
-        let t = self.inner.topology().map_err(to_py)?;
-        let topo_s = self.inner.report().complex.map(|r| r.topology_s);
+        let (t, topo_s) = self.topology_and_time().map_err(to_py)?;
         let v = serde_json::json!({
             "dim": t.dim,
             "cells": t.cells,
@@ -394,17 +459,36 @@ impl Complex {
             projection: Some(projection.to_string()),
             ascii,
         };
-        let inner = self.inner.clone();
-        released(py, &self.callable, move || inner.write_with(&path, &opts))
+        match &self.inner {
+            Source::Run(m) => {
+                let m = m.clone();
+                released(py, &self.callable, move || m.write_with(&path, &opts))
+            }
+            Source::Assembled(_) => {
+                let (c, f, name) = (self.get(), self.function(), &self.name);
+                released(py, &self.callable, move || {
+                    write_complex(c, Some(f), name, &path, &opts)
+                })
+            }
+        }
     }
 
     /// Draws the mesh into a PNG picture of `width` x `height` pixels.
     #[pyo3(signature = (path, width=1200, height=900))]
     fn picture(&self, py: Python<'_>, path: PathBuf, width: usize, height: usize) -> PyResult<()> {
-        let inner = self.inner.clone();
-        released(py, &self.callable, move || {
-            inner.picture(&path, width, height)
-        })
+        match &self.inner {
+            Source::Run(m) => {
+                let m = m.clone();
+                released(py, &self.callable, move || m.picture(&path, width, height))
+            }
+            Source::Assembled(a) => {
+                let (c, f, name) = (self.get(), self.function(), &self.name);
+                released(py, &self.callable, move || {
+                    let (t, _) = a.topology();
+                    picture_complex(c, t, Some(f), name, &path, width, height)
+                })
+            }
+        }
     }
 
     fn __repr__(&self) -> String {

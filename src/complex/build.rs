@@ -10,11 +10,24 @@ use crate::error::{Error, Result};
 use crate::trace::{with_width, Domain, Sample};
 use crate::triangulation::KeyCodec;
 
-/// The cells of one dimension before clipping: their facets (indices one level lower) and
-/// whether they have both an inside and an outside crossing.
+/// The cells of one dimension before clipping: their facets (indices one level lower),
+/// whether they have both an inside and an outside crossing, and (when kept) their keys.
 struct RawLevel {
     cells: Level,
     mixed: Vec<bool>,
+    keys: Vec<u64>,
+}
+
+/// What names the cells of a complex globally: for each level j = 1..m, the keys of its
+/// interior cells (their (k+j)-simplices of T, `words` u64 each) and which of them are
+/// mixed (cut by the domain's boundary, in order: the boundary cells one level lower, or for
+/// j = 1 the boundary vertices, are their cuts in this order).
+pub(crate) struct CellKeys {
+    pub words: usize,
+    pub keys: Vec<Vec<u64>>,
+    pub mixed: Vec<Vec<bool>>,
+    /// For each edge left out (see [`ComplexStats::defects`]), its first vertex in S.
+    pub defects: Vec<u32>,
 }
 
 pub(super) fn build(
@@ -22,30 +35,43 @@ pub(super) fn build(
     domain: &Domain,
     max_memory: u64,
     cancel: Option<&AtomicBool>,
-) -> Result<Complex> {
+    keep_keys: bool,
+) -> Result<(Complex, Option<CellKeys>)> {
     let start = Instant::now();
     let codec = s.codec();
     let (d, k) = (codec.ambient_dim(), codec.simplex_dim());
     // Cofaces reach one lattice step beyond their faces: one more bit keeps them encodable.
     let bits = (codec.coord_bits() + 1).min(32);
     let words = KeyCodec::new(d, d, bits)?.words().max(codec.words());
-    let (raw, defects) = with_width!(words, raw_levels(s, bits, max_memory, cancel))?;
+    let (mut raw, defects) =
+        with_width!(words, raw_levels(s, bits, max_memory, cancel, keep_keys))?;
+    let keys = keep_keys.then(|| CellKeys {
+        words,
+        keys: raw
+            .iter_mut()
+            .map(|l| std::mem::take(&mut l.keys))
+            .collect(),
+        mixed: raw.iter().map(|l| l.mixed.clone()).collect(),
+        defects: defects.clone(),
+    });
     let mut c = clip(s, domain, raw, d, d - k);
     c.stats = ComplexStats {
-        defects,
+        defects: defects.len(),
         elapsed_s: start.elapsed().as_secs_f64(),
     };
-    Ok(c)
+    Ok((c, keys))
 }
 
 /// The unclipped levels 1..=m: level j holds the cofacets of level j - 1 (level 0: S, then
-/// the rim), grouped. A 1-cell needs a vertex in S, and exactly two crossed facets.
+/// the rim), grouped. A 1-cell needs a vertex in S, and exactly two crossed facets; the
+/// edges left out are returned as their first vertex in S.
 fn raw_levels<const W: usize>(
     s: &Sample,
     bits: u32,
     max_memory: u64,
     cancel: Option<&AtomicBool>,
-) -> Result<(Vec<RawLevel>, usize)> {
+    keep_keys: bool,
+) -> Result<(Vec<RawLevel>, Vec<u32>)> {
     let codec = *s.codec();
     let (d, k) = (codec.ambient_dim(), codec.simplex_dim());
     let (n, r) = (s.len(), s.rim_len());
@@ -60,7 +86,7 @@ fn raw_levels<const W: usize>(
     let mut prev_codec = codec;
     let mut prev_mixed: Vec<bool> = (0..n + r).map(|i| i >= n).collect();
     let mut levels = Vec::with_capacity(d - k);
-    let mut defects = 0;
+    let mut defects = Vec::new();
     for j in 1..=d - k {
         if cancel.is_some_and(|c| c.load(Ordering::Relaxed)) {
             return Err(Error::Trace("interrupted".into()));
@@ -99,7 +125,7 @@ fn raw_levels<const W: usize>(
                     continue;
                 }
                 if group.len() != 2 {
-                    defects += 1;
+                    defects.push(group[0].1);
                     continue;
                 }
             }
@@ -115,10 +141,19 @@ fn raw_levels<const W: usize>(
             // Vertices of the complex: S only (the rim's crossings lie outside).
             prev_mixed.truncate(n);
         }
+        let kept = if keep_keys {
+            keys.iter().flatten().copied().collect()
+        } else {
+            Vec::new()
+        };
         prev = keys;
         prev_codec = cj;
         prev_mixed.clone_from(&mixed);
-        levels.push(RawLevel { cells, mixed });
+        levels.push(RawLevel {
+            cells,
+            mixed,
+            keys: kept,
+        });
     }
     Ok((levels, defects))
 }

@@ -25,6 +25,7 @@ use crate::error::Result;
 use crate::expr::ImplicitFunction;
 use crate::trace::{Domain, Sample};
 
+pub(crate) use build::CellKeys;
 pub use surface::Surface;
 pub use topology::Topology;
 
@@ -57,6 +58,15 @@ impl Level {
     /// Whether cell `i` lies on the boundary.
     pub fn on_boundary(&self, i: usize) -> bool {
         i >= self.interior
+    }
+    /// The level of cells with these facet lists (`offsets`: one more than cells, from 0),
+    /// the first `interior` of them interior.
+    pub(crate) fn from_lists(offsets: Vec<u32>, facets: Vec<u32>, interior: usize) -> Self {
+        Level {
+            offsets,
+            facets,
+            interior,
+        }
     }
     fn push(&mut self, facets: impl IntoIterator<Item = u32>) {
         if self.offsets.is_empty() {
@@ -119,7 +129,37 @@ impl Complex {
         bbox: Option<&[[f64; 2]]>,
         max_memory: u64,
     ) -> Result<Self> {
-        build::build(s, &Domain::new(f, bbox), max_memory, None)
+        build::build(s, &Domain::new(f, bbox), max_memory, None, false).map(|(c, _)| c)
+    }
+
+    /// [`Complex::build_within`], with the keys that name its cells globally.
+    pub(crate) fn build_keyed(
+        s: &Sample,
+        f: &dyn ImplicitFunction,
+        bbox: Option<&[[f64; 2]]>,
+        max_memory: u64,
+    ) -> Result<(Self, CellKeys)> {
+        let (c, keys) = build::build(s, &Domain::new(f, bbox), max_memory, None, true)?;
+        Ok((c, keys.expect("asked for")))
+    }
+
+    /// A complex from its parts: `points` (d per vertex, the first `interior_vertices` of
+    /// them in S) and the levels 1..=m.
+    pub(crate) fn from_parts(
+        d: usize,
+        points: Vec<f64>,
+        interior_vertices: usize,
+        levels: Vec<Level>,
+        stats: ComplexStats,
+    ) -> Self {
+        Complex {
+            d,
+            m: levels.len(),
+            points,
+            interior_vertices,
+            levels,
+            stats,
+        }
     }
 
     /// [`Complex::build_within`], stopping with an error between levels once `cancel` is set.
@@ -130,7 +170,7 @@ impl Complex {
         max_memory: u64,
         cancel: &std::sync::atomic::AtomicBool,
     ) -> Result<Self> {
-        build::build(s, &Domain::new(f, bbox), max_memory, Some(cancel))
+        build::build(s, &Domain::new(f, bbox), max_memory, Some(cancel), false).map(|(c, _)| c)
     }
 
     /// Ambient dimension d.

@@ -72,6 +72,9 @@ pub struct TraceOptions<'a> {
     /// Keep the pool's other threads polling for work while the trace runs, so that small
     /// levels use every core (they burn those cores meanwhile; the command line sets it).
     pub warm: bool,
+    /// The box keys are sized for (bits per lattice coordinate), if not `bbox`: the shards
+    /// of one box give it the whole box, so that their keys are the whole scan's.
+    pub key_box: Option<Vec<[f64; 2]>>,
 }
 
 impl Default for TraceOptions<'_> {
@@ -85,6 +88,7 @@ impl Default for TraceOptions<'_> {
             cancel: None,
             progress: None,
             warm: false,
+            key_box: None,
         }
     }
 }
@@ -264,7 +268,10 @@ fn context<'a>(
         check_box(b, d)?;
     }
     let bbox = opts.bbox.as_deref();
-    let codec = KeyCodec::new(d, k, coord_bits(tri, bbox))?;
+    if let Some(b) = &opts.key_box {
+        check_box(b, d)?;
+    }
+    let codec = KeyCodec::new(d, k, coord_bits(tri, opts.key_box.as_deref().or(bbox)))?;
     Ok(TraceContext {
         tri,
         oracle,
