@@ -215,7 +215,7 @@ def scan(
     out: Optional[Union[str, os.PathLike]] = None,
     *,
     halo: Optional[float] = None,
-    backend: str = "cpu",
+    backend: str = "auto",
     threads: Optional[int] = None,
     precision: Optional[str] = None,
     max_memory: Optional[int] = None,
@@ -227,7 +227,8 @@ def scan(
     interior cut positions. `client` is a ``dask.distributed.Client`` (default: the current
     one). With `out` a directory, each shard writes its part there and nothing large comes
     back (see :func:`merge`). `halo` (default: 1.1 times the triangulation's edge) widens each
-    shard's scan; `threads` per task defaults to the worker's thread count; `backend`,
+    shard's scan; `threads` per task defaults to the worker's thread count; `backend`
+    ("auto": a worker's hardware GPU if it has one, else its CPU; the result is the same),
     `precision` and `max_memory` (bytes, per shard) are those of ``Problem.scan``.
     `progress` prints a progress line on stderr (Dask's dashboard shows the tasks too)."""
     if not isinstance(problem, Problem):
@@ -246,10 +247,9 @@ def scan(
     outdir = None
     if out is not None:
         outdir = os.fspath(out)
+        # Nothing there is removed: parts of this run replace their namesakes, and the new
+        # manifest lists only this run's.
         os.makedirs(outdir, exist_ok=True)
-        for name in os.listdir(outdir):
-            if name.startswith("part-") and name.endswith(".npz"):
-                os.remove(os.path.join(outdir, name))
     client = _client(client)
     from dask.distributed import as_completed
 
@@ -357,13 +357,16 @@ def _write_manifest(
     stats: list[dict[str, Any]],
     report: dict[str, Any],
 ) -> None:
-    problem_file = "problem.pickle"
+    problem_file: Optional[str] = "problem.pickle"
     try:
-        blob = pickle.dumps(problem)
-    except Exception:  # a function that pickle cannot send: merge() then needs problem=
+        # cloudpickle (a Dask dependency) also sends functions defined in a session.
+        import cloudpickle
+
+        blob: Optional[bytes] = cloudpickle.dumps(problem)
+    except Exception:  # nothing can send this function: merge() then needs problem=
         blob = None
         problem_file = None
-    if blob is not None:
+    if blob is not None and problem_file is not None:
         with open(os.path.join(out, problem_file), "wb") as f:
             f.write(blob)
     manifest = {
