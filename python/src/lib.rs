@@ -62,7 +62,7 @@ fn _isomesh(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<result::Sample>()?;
     m.add_class::<result::Complex>()?;
     m.add_function(wrap_pyfunction!(presets, m)?)?;
-    m.add_function(wrap_pyfunction!(shard::_problem_from_recipe, m)?)?;
+    m.add_function(wrap_pyfunction!(problem::_problem_from_recipe, m)?)?;
     m.add_function(wrap_pyfunction!(shard::_split_count, m)?)?;
     m.add_function(wrap_pyfunction!(shard::_shard_grid, m)?)?;
     m.add_function(wrap_pyfunction!(shard::_uniform_cuts, m)?)?;

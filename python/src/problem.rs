@@ -13,7 +13,7 @@ use isomesh::gpu::Precision;
 use isomesh::{Backend, Error, Manifold, Mesher};
 use pyo3::exceptions::{PyRuntimeWarning, PyTypeError, PyValueError};
 use pyo3::prelude::*;
-use pyo3::types::{PyDict, PyString};
+use pyo3::types::{PyDict, PyString, PyTuple};
 
 use crate::callable::PyFunction;
 use crate::result::Sample;
@@ -709,5 +709,31 @@ impl Problem {
                 None => "a Python function".into(),
             }
         )
+    }
+}
+
+/// A pickled problem made again: `recipe` is (constructor, keywords) as `Problem.__reduce__`
+/// gives it.
+#[pyfunction]
+pub(crate) fn _problem_from_recipe<'py>(
+    py: Python<'py>,
+    recipe: &Bound<'py, PyTuple>,
+) -> PyResult<Bound<'py, PyAny>> {
+    let (kind, keywords): (String, Bound<'py, PyDict>) = recipe.extract()?;
+    let cls = py.get_type::<Problem>();
+    match kind.as_str() {
+        "new" => cls.call((), Some(&keywords)),
+        "preset" => {
+            let keywords = keywords.copy()?;
+            let name = keywords
+                .get_item("name")?
+                .ok_or_else(|| PyValueError::new_err("a preset recipe without a name"))?;
+            keywords.del_item("name")?;
+            cls.getattr("preset")?.call((name,), Some(&keywords))
+        }
+        "from_toml" => cls.getattr("from_toml")?.call((), Some(&keywords)),
+        k => Err(PyValueError::new_err(format!(
+            "unknown problem recipe `{k}`"
+        ))),
     }
 }

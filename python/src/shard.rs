@@ -1,13 +1,12 @@
 //! Parts of a sharded scan as dicts of NumPy arrays (what Dask sends between processes and
-//! `isomesh.distributed` writes as .npz), and pickled problems made again.
+//! `isomesh.distributed` writes as .npz), and the shard grid.
 
 use isomesh::shard::{Part, PartLevel, PartStats};
 use numpy::{IntoPyArray, PyReadonlyArrayDyn};
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
-use pyo3::types::{PyDict, PyTuple};
+use pyo3::types::PyDict;
 
-use crate::problem::Problem;
 use crate::result::array2;
 
 /// The part as a dict: `meta` (d, id words, key words, defects, m), `vertex_ids` (n, I),
@@ -136,32 +135,6 @@ pub(crate) fn part_from_py(d: &Bound<'_, PyDict>) -> PyResult<Part> {
         defects: defects as usize,
         stats: PartStats::default(),
     })
-}
-
-/// A pickled problem made again: `recipe` is (constructor, keywords) as `Problem.__reduce__`
-/// gives it.
-#[pyfunction]
-pub(crate) fn _problem_from_recipe<'py>(
-    py: Python<'py>,
-    recipe: &Bound<'py, PyTuple>,
-) -> PyResult<Bound<'py, PyAny>> {
-    let (kind, keywords): (String, Bound<'py, PyDict>) = recipe.extract()?;
-    let cls = py.get_type::<Problem>();
-    match kind.as_str() {
-        "new" => cls.call((), Some(&keywords)),
-        "preset" => {
-            let keywords = keywords.copy()?;
-            let name = keywords
-                .get_item("name")?
-                .ok_or_else(|| PyValueError::new_err("a preset recipe without a name"))?;
-            keywords.del_item("name")?;
-            cls.getattr("preset")?.call((name,), Some(&keywords))
-        }
-        "from_toml" => cls.getattr("from_toml")?.call((), Some(&keywords)),
-        k => Err(PyValueError::new_err(format!(
-            "unknown problem recipe `{k}`"
-        ))),
-    }
 }
 
 /// Shards per axis for `n` shards in all (see `isomesh::shard::split_count`).
