@@ -10,7 +10,7 @@
 # not edit the tree while it runs; an interrupt (Ctrl-C) puts the file back. The crate is
 # built without the gpu and cli features, at opt-level 1 and without debug information: on
 # 2 cores a mutant then rebuilds in about 20 s (about 36 s with line tables; opt-level 0
-# rebuilds in 2 s but makes the tracing tests 5-10x slower), and the unit tests run in
+# rebuilds in 2 s but makes the unit tests up to 14x slower), and the unit tests run in
 # about 35 s, so a whole module takes hours: use a shard (every n-th mutant) for a sample.
 # Results go to mutants.out/. Exclusions, with their reasons: .cargo/mutants.toml.
 set -euo pipefail
