@@ -112,14 +112,14 @@ mod tests {
     /// Pivots on random (k+1)-simplices with crossed facets, k = 1..6: how many named the
     /// other crossed facet that the exact test finds, and how many did not. `ties` is the
     /// share of vertex values drawn from small integers (exact ties are then common).
-    fn pivot_outcomes(ties: f64) -> (usize, usize) {
+    fn pivot_outcomes(ties: f64, per_k: usize) -> (usize, usize) {
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(11);
         let (mut confirmed, mut wrong) = (0, 0);
         for k in 1..=6 {
             let n = k + 1;
             let mut pivot = Pivot::new(k);
             let mut lambda = vec![0.0; n];
-            for _ in 0..3000 {
+            for _ in 0..per_k {
                 // k + 2 vertices of tau; small integers make exact ties common.
                 let tau: Vec<f64> = (0..(n + 1) * k)
                     .map(|_| {
@@ -166,12 +166,52 @@ mod tests {
 
     #[test]
     fn the_ratio_test_finds_the_other_crossed_facet() {
-        let (confirmed, wrong) = pivot_outcomes(0.0);
-        assert!(confirmed > 5000, "only {confirmed} pivots");
+        // 600 draws for each k find about 1,200 pivots.
+        let (confirmed, wrong) = pivot_outcomes(0.0, 600);
+        assert!(confirmed > 900, "only {confirmed} pivots");
         assert_eq!(wrong, 0, "wrong exits without ties");
         // With exact ties f64 may guess wrong (the tracer then tests every facet), rarely.
-        let (confirmed, wrong) = pivot_outcomes(0.3);
-        assert!(confirmed > 5000, "only {confirmed} pivots");
-        assert!(wrong * 100 < confirmed, "{wrong} wrong of {confirmed}");
+        let (confirmed, wrong) = pivot_outcomes(0.3, 600);
+        assert!(confirmed > 900, "only {confirmed} pivots");
+        assert!(wrong * 50 < confirmed, "{wrong} wrong of {confirmed}");
+    }
+
+    #[test]
+    fn exact_ties_in_the_ratios_go_to_the_lexicographically_smallest_row() {
+        // k = 1, sigma with values 0 and 0 at vertices 0 and 1 would be singular; take
+        // F = -1, 1 (L = [[1, 1], [-1, 1]] before scaling): w = 0 enters at the midpoint,
+        // L^-1 a = (1/2, 1/2), a tie in the first ratio, broken by the rows of L^-1.
+        let mut p = Pivot::new(1);
+        assert!(p.load(|j, _| [-1.0, 1.0][j]));
+        // Rows of L^-1 (scaled): (1/2, -1/2), (1/2, 1/2); the first is smaller.
+        assert_eq!(p.exit(&[0.0]), Some(0));
+        let mut q = Pivot::new(1);
+        assert!(q.load(|j, _| [1.0, -1.0][j]));
+        assert_eq!(q.exit(&[0.0]), Some(1));
+        // Without a tie the smallest ratio wins: w = -1/2 gives L^-1 a = (3/4, 1/4) for
+        // F = -1, 1, so vertex 0 leaves: 1/2 / (3/4) < 1/2 / (1/4) for the first entries.
+        assert_eq!(p.exit(&[-0.5]), Some(0));
+        assert_eq!(p.exit(&[0.5]), Some(1));
+        // Outside the segment one entry is negative: the positive one leaves.
+        assert_eq!(p.exit(&[3.0]), Some(1));
+        assert_eq!(p.exit(&[-3.0]), Some(0));
+        assert_eq!(p.exit(&[f64::NAN]), None);
+    }
+
+    #[test]
+    fn a_singular_simplex_loads_no_pivot() {
+        let mut p = Pivot::new(2);
+        // Three vertices on a line in value space: L is singular.
+        assert!(!p.load(|j, c| [[0.0, 0.0], [1.0, 1.0], [2.0, 2.0]][j][c]));
+        assert!(p.load(|j, c| [[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]][j][c]));
+        // F = 0, e1, e2: L^-1 a is f's barycentric coordinates (1 - f1 - f2, f1, f2) and the
+        // first column of L^-1 is (1, 0, 0); for f = (0.2, 0.3) rows 1 and 2 tie at 0 in the
+        // first entry and the second column, (-1, 1, 0) over the scale, puts row 2 first.
+        assert_eq!(p.exit(&[0.2, 0.3]), Some(2));
+        assert_eq!(p.exit(&[0.3, 0.2]), Some(2));
+        // Only vertex 0's coordinate is positive.
+        assert_eq!(p.exit(&[-1.0, -1.0]), Some(0));
+        // Only vertex 1's.
+        assert_eq!(p.exit(&[2.0, -3.0]), Some(1));
     }
 }

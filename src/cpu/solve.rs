@@ -391,4 +391,228 @@ mod tests {
             }
         }
     }
+    /// A random n x n matrix with a dominant diagonal, rows in any order.
+    fn random_matrix(rng: &mut rand_chacha::ChaCha8Rng, n: usize) -> Vec<f64> {
+        use rand::Rng;
+        let mut a: Vec<f64> = (0..n * n).map(|_| rng.random_range(-1.0..1.0)).collect();
+        for i in 0..n {
+            a[i * n + i] += if rng.random_bool(0.5) { 3.0 } else { -3.0 } * n as f64;
+        }
+        // A row rotation: the largest entry of column 0 is then not on the diagonal.
+        a.rotate_left(n * (n / 2));
+        a
+    }
+
+    #[test]
+    fn invert_gives_the_inverse_and_refuses_singular_matrices() {
+        use rand::SeedableRng;
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(5);
+        for n in 1..=9 {
+            for _ in 0..20 {
+                let a0 = random_matrix(&mut rng, n);
+                let (mut a, mut inv) = (a0.clone(), vec![7.0; n * n]);
+                assert!(invert(n, &mut a, &mut inv), "n = {n}");
+                for r in 0..n {
+                    for c in 0..n {
+                        let x: f64 = (0..n).map(|t| a0[r * n + t] * inv[t * n + c]).sum();
+                        let want = if r == c { 1.0 } else { 0.0 };
+                        assert!((x - want).abs() < 1e-12, "n = {n}: A A^-1 [{r}][{c}] = {x}");
+                    }
+                }
+            }
+            // Two equal rows; and a zero column.
+            let mut a = random_matrix(&mut rng, n);
+            if n > 1 {
+                let row: Vec<f64> = a[..n].to_vec();
+                a[n..2 * n].copy_from_slice(&row);
+            } else {
+                a[0] = 0.0;
+            }
+            let mut inv = vec![0.0; n * n];
+            assert!(!invert(n, &mut a, &mut inv), "n = {n}: singular");
+        }
+        // A permutation matrix needs the row swaps.
+        let (mut a, mut inv) = (
+            vec![0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 1.0, 0.0, 0.0],
+            vec![0.0; 9],
+        );
+        assert!(invert(3, &mut a, &mut inv));
+        assert_eq!(inv, [0.0, 0.0, 1.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0]);
+    }
+
+    #[test]
+    fn rows_are_scaled_by_powers_of_two_to_a_largest_entry_in_one_to_two() {
+        for v in [
+            1.0,
+            1.5,
+            3.0,
+            0.7,
+            1e-300,
+            6e300,
+            -2.5e-7,
+            f64::MAX,
+            f64::MIN_POSITIVE,
+        ] {
+            let s = pow2_inverse(v);
+            assert_eq!(
+                s.to_bits() & ((1u64 << 52) - 1),
+                0,
+                "{v}: not a power of two"
+            );
+            let x = v.abs() * s;
+            if v.abs() < 2.0f64.powi(1023) {
+                assert!((1.0..2.0).contains(&x), "{v} * {s} = {x}");
+            } else {
+                assert_eq!(s, 2.0f64.powi(-1022));
+            }
+        }
+        for v in [0.0, 1e-310, f64::INFINITY, f64::NAN] {
+            assert_eq!(pow2_inverse(v), 1.0, "{v}");
+        }
+        let vals = [[3.0, -0.25], [-6.0, 0.5], [1.0, 0.0]];
+        let mut out = [0.0; 6];
+        scaled_rows(2, |j, c| vals[j][c], &mut out);
+        assert_eq!(out, [0.75, -1.5, 0.25, -0.5, 1.0, 0.0]);
+        let mut f = [0.0; 2];
+        scaled_row_factors(2, |j, c| vals[j][c], &mut f);
+        assert_eq!(f, [0.25, 2.0]);
+    }
+
+    #[test]
+    fn the_sign_filter_names_only_what_is_certain() {
+        let v = |rows: &'static [[f64; 2]]| move |j: usize, c: usize| rows[j][c];
+        assert_eq!(
+            filter_verdict(2, v(&[[1.0, 0.0], [2.0, -1.0], [3.0, 1.0]])),
+            Some(Status::Outside)
+        );
+        assert_eq!(
+            filter_verdict(2, v(&[[1.0, -1.0], [-2.0, -1.0], [3.0, -4.0]])),
+            Some(Status::Outside)
+        );
+        assert_eq!(
+            filter_verdict(2, v(&[[1.0, 0.0], [-2.0, -1.0], [3.0, 1.0]])),
+            None
+        );
+        assert_eq!(
+            filter_verdict(2, v(&[[0.0, 0.0], [0.0, 0.0], [0.0, 0.0]])),
+            None
+        );
+        assert_eq!(
+            filter_verdict(2, v(&[[1.0, 0.0], [-2.0, f64::INFINITY], [3.0, 1.0]])),
+            Some(Status::NonFinite)
+        );
+        assert_eq!(
+            filter_verdict(2, v(&[[1.0, 1.0], [2.0, 1.0], [f64::NAN, 1.0]])),
+            Some(Status::NonFinite)
+        );
+    }
+
+    #[test]
+    fn exact_decisions_on_known_simplices() {
+        let mut l = [0.0; 3];
+        assert_eq!(exact_decision(&[-1.0, 3.0], 1, &mut l), Status::Crossed);
+        assert_eq!(&l[..2], &[0.75, 0.25]);
+        assert_eq!(
+            exact_decision(&[1.0, 0.0, 0.0, 1.0, -1.0, -1.0], 2, &mut l),
+            Status::Crossed
+        );
+        assert_eq!(l, [1.0 / 3.0; 3]);
+        // The origin outside, beyond each edge in turn.
+        assert_eq!(
+            exact_decision(&[1.0, 0.0, 0.0, 1.0, 1.0, 1.0], 2, &mut l),
+            Status::Outside
+        );
+        assert_eq!(
+            exact_decision(&[1.0, 1.0, 2.0, 1.0, 1.0, 2.0], 2, &mut l),
+            Status::Outside
+        );
+        assert_eq!(
+            exact_decision(&[-1.0, 2.0, 2.0, -1.0, 1.0, 1.0], 2, &mut l),
+            Status::Outside
+        );
+        // Rows that need a swap (a zero pivot), and a singular L.
+        assert_eq!(
+            exact_decision(&[0.0, 1.0, 1.0, 0.0, -1.0, -1.0], 2, &mut l),
+            Status::Crossed
+        );
+        assert_eq!(l, [1.0 / 3.0; 3]);
+        assert_eq!(
+            exact_decision(&[1.0, 1.0, 2.0, 2.0, 3.0, 3.0], 2, &mut l),
+            Status::Degenerate
+        );
+        assert_eq!(exact_decision(&[0.0, 0.0], 1, &mut l), Status::Degenerate);
+        // Ties: the origin on an edge or at a vertex goes by the sign of the first non-zero
+        // entry of each row of L^-1 (symbolic perturbation): one side only.
+        let a = exact_decision(&[0.0, 1.0], 1, &mut l);
+        let b = exact_decision(&[0.0, -1.0], 1, &mut l);
+        assert_eq!((a, b), (Status::Crossed, Status::Outside));
+        // Over the whole exponent range, exactly.
+        let tiny = f64::from_bits(1);
+        assert_eq!(
+            exact_decision(&[-f64::MAX, tiny], 1, &mut l),
+            Status::Crossed
+        );
+        // lambda_0 = 2^-1074 / (2^1024 - ...) underflows to 0 in f64, lambda_1 rounds to 1.
+        assert!(l[0] == 0.0 && l[1] == 1.0, "{l:?}");
+        assert_eq!(
+            exact_decision(&[3.0 * 2f64.powi(-1060), -2f64.powi(-1060)], 1, &mut l),
+            Status::Crossed
+        );
+        assert_eq!(&l[..2], &[0.25, 0.75]);
+        assert_eq!(exact_decision(&[3e300, -1e300], 1, &mut l), Status::Crossed);
+        assert_eq!(&l[..2], &[0.25, 0.75]);
+    }
+
+    #[test]
+    fn big_ratios_come_back_as_floats() {
+        let big = BigInt::one() << 3000u32;
+        assert_eq!(ratio_to_f64(&(&big * 3u32), &(&big * 4u32)), 0.75);
+        assert_eq!(
+            ratio_to_f64(&BigInt::from(-1), &BigInt::from(3)),
+            -1.0 / 3.0
+        );
+        assert!(ratio_to_f64(&BigInt::one(), &BigInt::zero()).is_nan());
+        for v in [1.5, -0.1, 6.02e23, -f64::MAX, -1e-300] {
+            let (m, e) = decompose(v);
+            assert_eq!(m as f64 * 2f64.powi(e), v, "{v}");
+        }
+        // The smallest subnormal, 2^-1074, as num-traits writes it.
+        assert_eq!(decompose(f64::from_bits(1)), (2, -1075));
+        assert_eq!(decompose(0.0).0, 0);
+    }
+
+    #[test]
+    fn the_fast_path_certifies_only_outside_its_error_bound() {
+        let mut d = Decider::new(1);
+        let mut l = [0.0; 2];
+        assert_eq!(d.fast_path(&[-2.0, 2.0], &mut l), Some(Status::Crossed));
+        assert_eq!(l, [0.5, 0.5]);
+        assert_eq!(d.fast_path(&[1.0, 3.0], &mut l), Some(Status::Outside));
+        assert_eq!(d.fast_path(&[3.0, 1.0], &mut l), Some(Status::Outside));
+        // lambda_1 = 1e-17 is within rounding: not certified either way; 1e-10 is.
+        assert_eq!(d.fast_path(&[-1.0, 1e-17], &mut l), None);
+        assert_eq!(d.fast_path(&[1e-17, -1.0], &mut l), None);
+        assert_eq!(d.fast_path(&[-1.0, 1e-10], &mut l), Some(Status::Crossed));
+        assert_eq!(d.fast_path(&[-1.0, -1e-10], &mut l), Some(Status::Outside));
+        assert_eq!(d.fast_path(&[0.0, 0.0], &mut l), None);
+        assert_eq!(d.fast_path(&[1.0, 1.0], &mut l), None);
+        // The decision says which path decided.
+        let got = d.decide(&[-1.0, 1e-17], &mut l);
+        assert_eq!((got.status, got.exact), (Status::Crossed, true));
+        let got = d.decide(&[-1.0, 1e-10], &mut l);
+        assert_eq!((got.status, got.exact), (Status::Crossed, false));
+        let got = d.decide(&[1.0, 2.0], &mut l);
+        assert_eq!((got.status, got.exact), (Status::Outside, false));
+        assert!(Status::Crossed.crossed() && !Status::Outside.crossed());
+        // Nearly singular in k = 2: the relative bound passes its cap, so no verdict.
+        let mut d2 = Decider::new(2);
+        let mut l2 = [0.0; 3];
+        let eps = 1e-15;
+        let v = [-1.0, -1.0, 1.0, 1.0 + eps, 1.0 + eps, 1.0];
+        assert_eq!(d2.fast_path(&v, &mut l2), None);
+        assert_eq!(
+            d2.fast_path(&[1.0, 0.0, 0.0, 1.0, -1.0, -1.0], &mut l2),
+            Some(Status::Crossed)
+        );
+    }
 }

@@ -211,3 +211,202 @@ impl BitReader<'_> {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use rand::{Rng, SeedableRng};
+    use rand_chacha::ChaCha8Rng;
+
+    use super::super::test_support::{random_partition, random_simplex};
+    use super::*;
+
+    /// Bits needed to write the part indices 0..=l, counted the slow way.
+    fn part_bits(l: usize) -> usize {
+        (0..).find(|&b| (1usize << b) > l).unwrap()
+    }
+
+    #[test]
+    fn a_key_has_the_words_its_fields_need() {
+        for d in 1..=MAX_DIM {
+            for l in 0..=d {
+                for bits in [2u32, 5, 16, 31, 32] {
+                    let c = KeyCodec::new(d, l, bits).unwrap();
+                    let need = d * bits as usize + d * part_bits(l);
+                    assert_eq!(
+                        c.words(),
+                        need.div_ceil(64).max(1),
+                        "d={d} l={l} bits={bits}"
+                    );
+                    assert_eq!(
+                        (c.ambient_dim(), c.simplex_dim(), c.coord_bits()),
+                        (d, l, bits)
+                    );
+                }
+            }
+        }
+        assert_eq!(KeyCodec::new(3, 0, 21).unwrap().words(), 1);
+        assert_eq!(KeyCodec::new(3, 1, 21).unwrap().words(), 2);
+        assert_eq!(KeyCodec::new(3, 3, 2).unwrap().words(), 1);
+    }
+
+    #[test]
+    fn bad_codecs_and_simplices_are_errors() {
+        assert!(KeyCodec::new(0, 0, 8).is_err());
+        assert!(KeyCodec::new(MAX_DIM + 1, 0, 8).is_err());
+        assert!(KeyCodec::new(3, 4, 8).is_err());
+        assert!(KeyCodec::new(3, 3, 1).is_err());
+        assert!(KeyCodec::new(3, 3, 33).is_err());
+        assert!(KeyCodec::new(3, 3, 2).is_ok() && KeyCodec::new(3, 3, 32).is_ok());
+        let c = KeyCodec::new(3, 1, 8).unwrap();
+        let mut out = [0u64; 4];
+        let mut rng = ChaCha8Rng::seed_from_u64(1);
+        let other_l = random_simplex(&mut rng, 3, 2, 3);
+        let other_d = random_simplex(&mut rng, 4, 1, 3);
+        assert!(matches!(
+            c.encode(&other_l, &mut out),
+            Err(Error::InvalidSimplex(_))
+        ));
+        assert!(matches!(
+            c.encode(&other_d, &mut out),
+            Err(Error::InvalidSimplex(_))
+        ));
+    }
+
+    #[test]
+    fn every_simplex_comes_back_from_its_key() {
+        let mut rng = ChaCha8Rng::seed_from_u64(7);
+        let mut back = Simplex::vertex(&[0; 5]).unwrap();
+        for round in 0..3000 {
+            let d = 1 + round % MAX_DIM.min(if round % 3 == 0 { MAX_DIM } else { 9 });
+            let l = rng.random_range(0..=d);
+            let bits = [2u32, 3, 7, 13, 21, 31, 32][round % 7];
+            let half = 1i64 << (bits - 1);
+            let r = (half - 1).min(i32::MAX as i64 - 1) as i32;
+            // A canonical partition (d+1 in the last part), so that the base stays as drawn.
+            let mut parts = random_partition(&mut rng, d, l);
+            let last = parts.iter().position(|p| p >> d & 1 == 1).unwrap();
+            parts.rotate_left(last + 1);
+            // Base coordinates over the whole range, its two ends included.
+            let base: Vec<i32> = (0..d)
+                .map(|_| match rng.random_range(0..4) {
+                    0 => (-half) as i32,
+                    1 => (half - 1) as i32,
+                    _ => rng.random_range(-r..=r),
+                })
+                .collect();
+            let s = Simplex::from_masks(&base, &parts).unwrap();
+            assert_eq!(s.base(), &base[..]);
+            let c = KeyCodec::new(d, l, bits).unwrap();
+            // A buffer full of ones: encode must clear what it does not write.
+            let mut key = vec![u64::MAX; c.words()];
+            c.encode(&s, &mut key).unwrap();
+            assert_eq!(c.decode(&key), s, "d={d} l={l} bits={bits}");
+            c.decode_into(&key, &mut back);
+            assert_eq!(back, s);
+            let mut clean = vec![0u64; c.words()];
+            c.encode(&s, &mut clean).unwrap();
+            assert_eq!(key, clean, "the key depends on the buffer's old contents");
+            // The base field of a key is the vertex's own encoding.
+            let mut v = vec![u64::MAX; c.words()];
+            c.encode_vertex(s.base(), &mut v).unwrap();
+            let field = d * bits as usize;
+            for (i, (a, b)) in key.iter().zip(&v).enumerate() {
+                let keep = field.saturating_sub(64 * i).min(64);
+                let mask = if keep == 64 {
+                    u64::MAX
+                } else {
+                    (1u64 << keep) - 1
+                };
+                assert_eq!(a & mask, b & mask, "word {i}");
+                assert_eq!(b & !mask, 0, "encode_vertex wrote past its field");
+            }
+            let mut w = vec![0i32; d];
+            c.decode_vertex(&v, &mut w);
+            assert_eq!(w, s.base());
+        }
+    }
+
+    #[test]
+    fn different_simplices_have_different_keys() {
+        let mut rng = ChaCha8Rng::seed_from_u64(3);
+        for (d, l, bits) in [(3, 1, 4), (3, 2, 3), (5, 3, 2), (2, 2, 2), (4, 0, 3)] {
+            let c = KeyCodec::new(d, l, bits).unwrap();
+            let mut seen = std::collections::HashMap::new();
+            for _ in 0..400 {
+                let s = random_simplex(&mut rng, d, l, 1);
+                let mut key = vec![0u64; c.words()];
+                if c.encode(&s, &mut key).is_err() {
+                    continue;
+                }
+                if let Some(t) = seen.insert(key, s.clone()) {
+                    assert_eq!(t, s, "two simplices share a key");
+                }
+            }
+            assert!(seen.len() > 20, "d={d} l={l}: {} keys", seen.len());
+        }
+    }
+
+    #[test]
+    fn a_coordinate_out_of_range_is_reported_with_its_value() {
+        for bits in [2u32, 8, 31, 32] {
+            let half = 1i64 << (bits - 1);
+            let c = KeyCodec::new(3, 0, bits).unwrap();
+            let mut out = [0u64; 2];
+            for (bad, at) in [(half, 1), (-half - 1, 2), (half, 0)] {
+                if bad > i32::MAX as i64 || bad < i32::MIN as i64 {
+                    continue;
+                }
+                let mut v = [(half - 1) as i32, (-half) as i32, 0];
+                v[at] = bad as i32;
+                match c.encode_vertex(&v, &mut out) {
+                    Err(Error::KeyOverflow { value, bits: b }) => {
+                        assert_eq!((value, b), (bad, bits));
+                    }
+                    other => panic!("bits={bits} {v:?}: {other:?}"),
+                }
+                let s = Simplex::vertex(&v).unwrap();
+                assert!(matches!(
+                    c.encode(&s, &mut out),
+                    Err(Error::KeyOverflow { .. })
+                ));
+            }
+            let ok = [(half - 1) as i32, (-half) as i32, 0];
+            c.encode_vertex(&ok, &mut out).unwrap();
+        }
+    }
+
+    #[test]
+    fn fields_that_straddle_words_come_back() {
+        // 3 coordinates of 31 bits: the third starts at bit 62 and ends in the second word;
+        // part indices of 6 bits (l = 40) straddle too.
+        let mut bw = [0u64; 3];
+        let mut w = BitWriter {
+            out: &mut bw,
+            pos: 0,
+        };
+        let vals = [
+            (5u64, 3u32),
+            (0x7fff_ffff, 31),
+            (0x1234_5678, 31),
+            (0x2a, 6),
+            (1, 1),
+        ];
+        for &(v, b) in &vals {
+            w.put(v, b);
+        }
+        assert_eq!(w.pos, 72);
+        let mut r = BitReader { words: &bw, pos: 0 };
+        for &(v, b) in &vals {
+            assert_eq!(r.get(b), v);
+        }
+        let full = [u64::MAX, 0];
+        assert_eq!(
+            BitReader {
+                words: &full,
+                pos: 0
+            }
+            .get(64),
+            u64::MAX
+        );
+    }
+}

@@ -6,6 +6,8 @@ mod geometry;
 mod key;
 mod key_set;
 mod simplex;
+#[cfg(test)]
+mod test_support;
 
 pub use geometry::{
     random_rotation, Offset, Triangulation, TriangulationBuilder, TriangulationKind,

@@ -409,7 +409,7 @@ impl Simplex {
         if n == d + 1 {
             return;
         }
-        let mut out = Self::blank(d, n + 1);
+        let mut out = Self::blank(d, 0); // scratch: cofacet_into sets its length
         for i in 0..n {
             let m = self.parts[i];
             if m.count_ones() < 2 {
@@ -475,7 +475,7 @@ impl Simplex {
         let mut gen = CofaceGen {
             src: self,
             suffix,
-            work: Self::blank(d, l + 1),
+            work: Self::blank(d, 0), // scratch: only its arrays are used
             emit: Self::blank(d, l + 1),
             f,
         };
@@ -514,7 +514,7 @@ impl Simplex {
         for (i, &x) in u.iter().enumerate() {
             let mut fl = x.floor();
             let mut fr = x - fl;
-            if fr > 1.0 - eps {
+            if fr >= 1.0 - eps {
                 fl += 1.0;
                 fr = 0.0;
             } else if fr <= eps {
@@ -661,5 +661,443 @@ impl fmt::Display for Simplex {
             write!(f, "}}")?;
         }
         write!(f, ")")
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use std::collections::hash_map::DefaultHasher;
+    use std::collections::HashSet;
+
+    use rand::{Rng, SeedableRng};
+    use rand_chacha::ChaCha8Rng;
+
+    use super::super::test_support::{
+        random_partition, random_simplex, simplex_from_vertices, simplices_near,
+        vertices_by_definition,
+    };
+    use super::*;
+
+    fn hash_of(s: &Simplex) -> u64 {
+        let mut h = DefaultHasher::new();
+        s.hash(&mut h);
+        h.finish()
+    }
+
+    /// The (j+1)-subsets of 0..n in lexicographic order.
+    fn subsets(n: usize, size: usize) -> Vec<Vec<usize>> {
+        let mut out = Vec::new();
+        for bits in 0u32..1 << n {
+            if bits.count_ones() as usize == size {
+                out.push((0..n).filter(|&i| bits >> i & 1 == 1).collect::<Vec<_>>());
+            }
+        }
+        out.sort();
+        out
+    }
+
+    fn vertex_set(s: &Simplex) -> HashSet<Vec<i32>> {
+        vertices_by_definition(s.base(), s.parts())
+            .into_iter()
+            .collect()
+    }
+
+    #[test]
+    fn vertices_follow_the_definition_and_the_base_is_the_smallest() {
+        let mut rng = ChaCha8Rng::seed_from_u64(11);
+        for round in 0..600 {
+            let d = if round % 10 == 0 {
+                MAX_DIM
+            } else {
+                1 + round % 9
+            };
+            let l = rng.random_range(0..=d);
+            let v0: Vec<i32> = (0..d).map(|_| rng.random_range(-5..=5)).collect();
+            let parts = random_partition(&mut rng, d, l);
+            let s = Simplex::from_masks(&v0, &parts).unwrap();
+            // Any cyclic position of the partition is the same simplex: the same vertices.
+            let given: HashSet<_> = vertices_by_definition(&v0, &parts).into_iter().collect();
+            assert_eq!(vertex_set(&s), given, "{s}");
+            assert_eq!((s.ambient_dim(), s.dim(), s.parts().len()), (d, l, l + 1));
+            assert_eq!(s.parts()[l] >> d & 1, 1, "d+1 not in the last part: {s}");
+            let vs = s.vertices();
+            assert_eq!(vs, vertices_by_definition(s.base(), s.parts()));
+            assert_eq!(&vs[0][..], s.base());
+            assert!(
+                vs.iter().all(|v| v >= &vs[0]),
+                "the base is not the smallest: {s}"
+            );
+            let mut out = vec![0; d];
+            let mut seen = 0;
+            s.for_each_vertex(|i, v| {
+                assert_eq!((i, v), (seen, &vs[i][..]));
+                seen += 1;
+            });
+            assert_eq!(seen, l + 1);
+            for (i, v) in vs.iter().enumerate() {
+                s.vertex_into(i, &mut out);
+                assert_eq!(&out, v);
+            }
+            for (i, &p) in s.parts().iter().enumerate() {
+                let elems: Vec<usize> = s.part_elements(i).collect();
+                let want: Vec<usize> = (1..=d + 1).filter(|&e| p >> (e - 1) & 1 == 1).collect();
+                assert_eq!(elems, want);
+            }
+        }
+    }
+
+    #[test]
+    fn faces_are_the_vertex_subsets_in_order() {
+        let mut rng = ChaCha8Rng::seed_from_u64(12);
+        for round in 0..200 {
+            let d = 1 + round % 6;
+            let l = rng.random_range(0..=d);
+            let s = random_simplex(&mut rng, d, l, 4);
+            let vs = s.vertices();
+            for j in 0..=l {
+                let faces = s.faces(j).unwrap();
+                let want = subsets(l + 1, j + 1);
+                assert_eq!(faces.len(), want.len(), "{s} j={j}");
+                for (f, keep) in faces.iter().zip(&want) {
+                    let kept: Vec<_> = keep.iter().map(|&i| vs[i].clone()).collect();
+                    assert_eq!(f.vertices(), kept, "{s} j={j}");
+                    assert_eq!(f, &simplex_from_vertices(&kept), "{s} j={j}");
+                    assert_eq!(f.vertices(), vertices_by_definition(f.base(), f.parts()));
+                    assert!(s.contains(f) && f.dim() == j);
+                }
+            }
+            assert!(s.faces(l + 1).is_err());
+        }
+        // The largest simplex: 64 vertices, 64 facets.
+        let s = random_simplex(&mut rng, MAX_DIM, MAX_DIM, 2);
+        let vs = s.vertices();
+        let points = s.faces(0).unwrap();
+        assert_eq!(points.len(), MAX_DIM + 1);
+        for (p, v) in points.iter().zip(&vs) {
+            assert_eq!(p, &Simplex::vertex(v).unwrap());
+        }
+        assert_eq!(s.faces(MAX_DIM - 1).unwrap().len(), MAX_DIM + 1);
+    }
+
+    #[test]
+    fn facets_drop_one_vertex_each_in_order() {
+        let mut rng = ChaCha8Rng::seed_from_u64(13);
+        for round in 0..400 {
+            let d = if round % 8 == 0 {
+                20 + round % 40
+            } else {
+                1 + round % 7
+            };
+            let l = rng.random_range(0..=d);
+            let s = random_simplex(&mut rng, d, l, 4);
+            let vs = s.vertices();
+            let facets = s.facets();
+            if l == 0 {
+                assert!(facets.is_empty());
+                continue;
+            }
+            assert_eq!(facets.len(), l + 1);
+            let mut out = Simplex::vertex(&[9; 3]).unwrap();
+            for (q, f) in facets.iter().enumerate() {
+                let mut want = vs.clone();
+                want.remove(q);
+                assert_eq!(f.vertices(), want, "{s} q={q}");
+                assert_eq!(f, &simplex_from_vertices(&want), "{s} q={q}");
+                assert_eq!(f.vertices(), vertices_by_definition(f.base(), f.parts()));
+                assert_eq!(f.parts()[l - 1] >> d & 1, 1, "facet not canonical");
+                s.facet_into(q, &mut out);
+                assert_eq!(&out, f, "facet_into({q}) of {s}");
+            }
+        }
+    }
+
+    #[test]
+    fn cofacets_and_cofaces_are_every_simplex_around() {
+        let mut rng = ChaCha8Rng::seed_from_u64(14);
+        for round in 0..60 {
+            let d = 1 + round % 4;
+            let k = rng.random_range(0..=d);
+            let s = random_simplex(&mut rng, d, k, 3);
+            let mine = vertex_set(&s);
+            for l in k..=d {
+                // Brute force: every l-simplex whose base is within 1 of s's and holds its vertices.
+                let want: HashSet<Simplex> = simplices_near(s.base(), l, 1)
+                    .into_iter()
+                    .filter(|c| vertex_set(c).is_superset(&mine))
+                    .collect();
+                let got = s.cofaces(l).unwrap();
+                assert_eq!(
+                    got.len(),
+                    want.len(),
+                    "{s} l={l}: a coface twice or missing"
+                );
+                assert_eq!(
+                    got.iter().cloned().collect::<HashSet<_>>(),
+                    want,
+                    "{s} l={l}"
+                );
+                for c in &got {
+                    assert_eq!(c.parts()[l] >> d & 1, 1, "coface not canonical");
+                    assert!(c.contains(&s));
+                }
+                if l == k + 1 {
+                    let cofacets = s.cofacets();
+                    assert_eq!(cofacets.len(), want.len());
+                    assert_eq!(cofacets.into_iter().collect::<HashSet<_>>(), want, "{s}");
+                    assert_eq!(s.cofacet_count(), want.len() as u64);
+                }
+            }
+            assert!(s.cofaces(d + 1).is_err());
+            if k > 0 {
+                assert!(s.cofaces(k - 1).is_err());
+            }
+            // The apex and the split of each cofacet.
+            let vs = s.vertices();
+            let mut n = 0;
+            let mut out = Simplex::vertex(&[0]).unwrap();
+            s.for_each_cofacet_split(|c, p, (i, sub)| {
+                let mut cv = c.vertices();
+                let apex = cv.remove(p);
+                assert_eq!(cv, vs, "{c}: apex {p}");
+                assert!(!vs.contains(&apex));
+                assert_eq!(s.cofacet_into(i, sub, &mut out), p);
+                assert_eq!(&out, c);
+                assert_eq!(
+                    c,
+                    &simplex_from_vertices(&c.vertices()),
+                    "{c} not canonical"
+                );
+                n += 1;
+            });
+            assert_eq!(n as u64, s.cofacet_count());
+            let mut m = 0;
+            s.for_each_cofacet_apex(|c, p| {
+                let mut cv = c.vertices();
+                cv.remove(p);
+                assert_eq!(cv, vs);
+                m += 1;
+            });
+            assert_eq!(m, n);
+        }
+    }
+
+    #[test]
+    fn cofaces_in_higher_dimensions_have_the_right_count() {
+        // The l-cofaces of an l'-simplex: ordered refinements of each part, counted by
+        // ordered set partitions (Fubini numbers), with no repeats.
+        let mut rng = ChaCha8Rng::seed_from_u64(15);
+        for d in [7usize, 9, 12] {
+            let v = Simplex::vertex(&vec![2; d]).unwrap();
+            let cofacets = v.cofacets();
+            assert_eq!(cofacets.len() as u64, (1u64 << (d + 1)) - 2);
+            assert_eq!(v.cofacet_count(), (1u64 << (d + 1)) - 2);
+            let s = random_simplex(&mut rng, d, d - 2, 3);
+            let got = s.cofaces(d).unwrap();
+            let distinct: HashSet<_> = got.iter().cloned().collect();
+            assert_eq!(distinct.len(), got.len());
+            // Parts of sizes a_i refine into singletons in prod a_i! ways.
+            let want: u64 = s
+                .parts()
+                .iter()
+                .map(|p| (1..=p.count_ones() as u64).product::<u64>())
+                .product();
+            assert_eq!(got.len() as u64, want, "{s}");
+            assert!(got.iter().all(|c| c.contains(&s) && c.dim() == d));
+        }
+        // The largest cofacets: a 62-simplex of R^63 whose first part has two elements.
+        let mut parts = vec![0b11u64];
+        parts.extend((2..=MAX_DIM).map(|e| 1u64 << e));
+        let s = Simplex::from_masks(&[0; MAX_DIM], &parts).unwrap();
+        let cofacets = s.cofacets();
+        assert_eq!(cofacets.len(), 2);
+        for c in &cofacets {
+            assert_eq!(c, &simplex_from_vertices(&c.vertices()));
+            assert!(c.contains(&s) && c.dim() == MAX_DIM);
+        }
+        let full = random_simplex(&mut rng, 5, 5, 2);
+        assert!(full.cofacets().is_empty() && full.cofacet_count() == 0);
+    }
+
+    #[test]
+    fn contains_compares_vertex_sets() {
+        let mut rng = ChaCha8Rng::seed_from_u64(16);
+        for _ in 0..300 {
+            let d = rng.random_range(1..=5);
+            let (la, lb) = (rng.random_range(0..=d), rng.random_range(0..=d));
+            let a = random_simplex(&mut rng, d, la, 1);
+            let b = random_simplex(&mut rng, d, lb, 1);
+            assert_eq!(a.contains(&b), vertex_set(&a).is_superset(&vertex_set(&b)));
+            assert!(a.contains(&a));
+        }
+        let a = Simplex::vertex(&[0, 0]).unwrap();
+        let b = Simplex::vertex(&[0, 0, 0]).unwrap();
+        assert!(!a.contains(&b) && !b.contains(&a));
+    }
+
+    #[test]
+    fn a_point_inside_a_simplex_locates_it() {
+        let mut rng = ChaCha8Rng::seed_from_u64(17);
+        for round in 0..1500 {
+            let d = if round % 50 == 0 {
+                MAX_DIM
+            } else {
+                1 + round % 8
+            };
+            let l = rng.random_range(0..=d);
+            let s = random_simplex(&mut rng, d, l, 1000);
+            // Weights of at least 1/(4(l+1)), so no two fractional parts come near each other.
+            let w: Vec<f64> = (0..=l).map(|_| rng.random_range(1.0..4.0)).collect();
+            let total: f64 = w.iter().sum();
+            let mut u = vec![0.0; d];
+            for (v, wi) in s.vertices().iter().zip(&w) {
+                for (x, &c) in u.iter_mut().zip(v) {
+                    *x += wi / total * c as f64;
+                }
+            }
+            let found = Simplex::locate_lattice(&u, 1e-9).unwrap();
+            assert_eq!(found, s, "{u:?}");
+            // Within eps of a vertex is the vertex.
+            let v = &s.vertices()[rng.random_range(0..=l)];
+            let near: Vec<f64> = v
+                .iter()
+                .map(|&c| c as f64 + rng.random_range(-1e-10..1e-10))
+                .collect();
+            assert_eq!(
+                Simplex::locate_lattice(&near, 1e-9).unwrap(),
+                Simplex::vertex(v).unwrap()
+            );
+        }
+        assert!(Simplex::locate_lattice(&[], 1e-9).is_err());
+        assert!(Simplex::locate_lattice(&[0.5, f64::NAN], 1e-9).is_err());
+        assert!(matches!(
+            Simplex::locate_lattice(&[0.5, 3e9], 1e-9),
+            Err(Error::KeyOverflow { bits: 32, .. })
+        ));
+        assert!(matches!(
+            Simplex::locate_lattice(&[-3e9, 0.0], 1e-9),
+            Err(Error::KeyOverflow { bits: 32, .. })
+        ));
+        let edge = Simplex::locate_lattice(&[2147483647.5, 0.0], 1e-9).unwrap();
+        assert_eq!(edge.base(), &[i32::MAX, 0]);
+        // Within eps of an integer, both ways and eps included, is the integer.
+        let at = |u: &[f64], eps: f64| Simplex::locate_lattice(u, eps).unwrap();
+        assert_eq!(at(&[0.75, 0.0], 0.25), Simplex::vertex(&[1, 0]).unwrap());
+        assert_eq!(at(&[0.25, 0.0], 0.25), Simplex::vertex(&[0, 0]).unwrap());
+        assert_eq!(at(&[0.5, 0.0], 0.25).dim(), 1);
+        // Fractional parts within eps of each other are one part.
+        let s = Simplex::locate_lattice(&[0.3, 0.3 + 1e-12, 0.7], 1e-9).unwrap();
+        assert_eq!(s.dim(), 2);
+        assert_eq!(s.parts(), &[0b100, 0b011, 0b1000]);
+    }
+
+    #[test]
+    fn bad_partitions_are_errors() {
+        let v = [0, 0];
+        for parts in [
+            &[][..],
+            &[0b111, 0][..],
+            &[0b1, 0b10, 0b100, 0b1000][..],
+            &[0b1011][..],
+            &[0b011, 0b110][..],
+            &[0b001, 0b100][..],
+        ] {
+            assert!(Simplex::from_masks(&v, parts).is_err(), "{parts:?}");
+        }
+        assert!(Simplex::from_masks(&[], &[1]).is_err());
+        assert!(Simplex::from_masks(&[0; MAX_DIM + 1], &[u64::MAX]).is_err());
+        assert!(Simplex::vertex(&[]).is_err());
+        assert!(Simplex::from_parts(&v, &[vec![0usize, 1, 2]]).is_err());
+        assert!(Simplex::from_parts(&v, &[vec![1usize, 2, 4]]).is_err());
+        assert!(Simplex::from_parts(&v, &[vec![1usize, 1], vec![2, 3]]).is_err());
+        assert!(Simplex::from_parts(&v, &[vec![2usize, 2], vec![1, 3]]).is_err());
+        // The messages name what is wrong.
+        let message = |parts: &[u64]| Simplex::from_masks(&v, parts).unwrap_err().to_string();
+        assert!(message(&[]).contains("0 parts"), "{}", message(&[]));
+        assert!(
+            message(&[1, 2, 4, 8]).contains("4 parts"),
+            "{}",
+            message(&[1, 2, 4, 8])
+        );
+        assert!(message(&[0b111, 0]).contains("part 2 is empty"));
+        assert!(message(&[0b1011]).contains("above 3"));
+        assert!(message(&[0b011, 0b110]).contains("repeats"));
+        assert!(message(&[0b001, 0b100]).contains("do not cover"));
+        let s = Simplex::from_parts(&[1, 2], &[vec![2usize], vec![1, 3]]).unwrap();
+        assert_eq!(s.parts(), &[0b010, 0b101]);
+        assert_eq!(s.to_string(), "([1, 2]; {2}{1,3})");
+        assert_eq!(format!("{s:?}"), "([1, 2]; {2}{1,3})");
+        let full = Simplex::vertex(&[0; MAX_DIM]).unwrap();
+        assert_eq!(full.parts(), &[u64::MAX]);
+    }
+
+    #[test]
+    fn equal_simplices_hash_alike_and_different_ones_differ() {
+        let a = Simplex::from_parts(&[1, 2], &[vec![2usize], vec![1, 3]]).unwrap();
+        // The same simplex from another cyclic position: base [1, 2] + e_2 = [1, 3].
+        let b = Simplex::from_parts(&[1, 3], &[vec![1usize, 3], vec![2]]).unwrap();
+        assert_eq!(a, b);
+        assert_eq!(hash_of(&a), hash_of(&b));
+        let other_base = Simplex::from_parts(&[1, 1], &[vec![2usize], vec![1, 3]]).unwrap();
+        let other_parts = Simplex::from_parts(&[1, 2], &[vec![1usize], vec![2, 3]]).unwrap();
+        let other_d = Simplex::from_parts(&[1, 2, 0], &[vec![2usize], vec![1, 3, 4]]).unwrap();
+        for c in [&other_base, &other_parts, &other_d] {
+            assert_ne!(&a, c);
+            assert_ne!(hash_of(&a), hash_of(c));
+        }
+        // Storage past the simplex's length does not count.
+        let mut long = Simplex::vertex(&[1, 2, 7, 7]).unwrap();
+        let (v0, parts) = long.reset(2, 2);
+        v0.copy_from_slice(&[1, 2]);
+        parts.copy_from_slice(&[0b010, 0b101]);
+        assert_eq!(long, a);
+        assert_eq!(hash_of(&long), hash_of(&a));
+    }
+
+    #[test]
+    fn storage_past_a_simplex_is_not_part_of_it() {
+        // A 2-simplex of R^3 leaves parts[2] = {3, 4} (with d+1) behind; the edge written
+        // over it is not in canonical form and must be canonicalized by its own parts.
+        let mut s = Simplex::from_masks(&[0, 0, 0], &[0b0001, 0b0010, 0b1100]).unwrap();
+        let (v0, parts) = s.reset(3, 2);
+        v0.copy_from_slice(&[0, 0, 0]);
+        parts.copy_from_slice(&[0b1001, 0b0110]);
+        s.canonicalize();
+        assert_eq!(
+            s,
+            Simplex::from_masks(&[0, 0, 0], &[0b1001, 0b0110]).unwrap()
+        );
+        assert_eq!(s.parts()[1] >> 3 & 1, 1);
+    }
+
+    #[test]
+    fn steps_and_masks_at_the_largest_dimension() {
+        assert_eq!(full_mask(MAX_DIM), u64::MAX);
+        assert_eq!(full_mask(3), 0b1111);
+        let mut v = vec![0; MAX_DIM];
+        shift_by_mask(&mut v, 1 << MAX_DIM, MAX_DIM);
+        assert!(v.iter().all(|&x| x == -1));
+        let mut v = vec![0; 4];
+        shift_by_mask(&mut v, 0b10101, 4);
+        assert_eq!(v, [0, -1, 0, -1]);
+        shift_by_mask(&mut v, 0b01010, 4);
+        assert_eq!(v, [0, 0, 0, 0]);
+        assert!(check_dim(0).is_err() && check_dim(MAX_DIM + 1).is_err());
+        assert!(check_dim(1).is_ok() && check_dim(MAX_DIM).is_ok());
+        let mut dst = [0u8; 12];
+        copy_run(&mut dst, 2, &[1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12], 1, 3);
+        assert_eq!(&dst[2..5], &[2, 3, 4]);
+        let mut dst = [0u8; 12];
+        copy_run(&mut dst, 1, &[1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12], 0, 10);
+        assert_eq!(&dst[1..11], &[1, 2, 3, 4, 5, 6, 7, 8, 9, 10]);
+        // Runs that end near the end of either array take the exact copy (a block of 8
+        // would run past it).
+        let src: Vec<u8> = (1..=12).collect();
+        for (dst_len, at, src_len, from) in
+            [(8, 1, 12, 0), (12, 0, 8, 1), (12, 6, 12, 0), (12, 0, 12, 6)]
+        {
+            let mut dst = vec![0u8; dst_len];
+            copy_run(&mut dst, at, &src[..src_len], from, 3);
+            assert_eq!(&dst[at..at + 3], &src[from..from + 3]);
+        }
     }
 }
