@@ -2,37 +2,54 @@
 # Mutation testing of one module with cargo-mutants (`cargo install --locked cargo-mutants`).
 #
 #   scripts/mutants.sh FILE [SHARD] [extra cargo-mutants options]
-#   scripts/mutants.sh src/cpu/solve.rs 0/20       # one twentieth of solve.rs's mutants
+#   scripts/mutants.sh src/triangulation/key.rs          # every mutant of key.rs
+#   scripts/mutants.sh src/triangulation/simplex.rs 0/4  # every fourth one
 #
-# Each mutant rebuilds the crate and runs the tests that guard FILE (the unit tests, plus
-# the integration test named below when MUTANTS_FULL=1; only those targets are built). It
-# runs in place, in this tree and its target/ (a copy would rebuild every dependency): do
-# not edit the tree while it runs; an interrupt (Ctrl-C) puts the file back. The crate is
-# built without the gpu and cli features, at opt-level 1 and without debug information: on
-# 2 cores a mutant then rebuilds in about 20 s (about 36 s with line tables; opt-level 0
-# rebuilds in 2 s but makes the unit tests up to 14x slower), and the unit tests run in
-# about 35 s, so a whole module takes hours: use a shard (every n-th mutant) for a sample.
-# Results go to mutants.out/. Exclusions, with their reasons: .cargo/mutants.toml.
+# Each mutant of FILE is built and checked against FILE's own unit tests (those under its
+# module path, small cases written to be fast), with the crate built without the gpu and cli features,
+# at opt-level 0 and without debug information: on 2 cores a mutant rebuilds in a few
+# seconds. The score is then a lower bound for the whole suite (a mutant these tests miss
+# may still be caught elsewhere); MUTANTS_TESTS=NAME runs the unit tests whose names hold
+# NAME instead (e.g. cpu::solve::tests, without the slower adversarial batches of
+# cpu::solve_adversarial). MUTANTS_FULL=1 runs every unit test and the module's
+# integration test instead, at opt-level 1 (about 20 s a rebuild and 1-2 minutes a mutant).
+# A shard `k/n` takes every n-th mutant (round robin), a fixed sample spread over the file.
+# It runs in place, in this tree and its target/: do not edit the tree while it runs; an
+# interrupt (Ctrl-C) puts the file back. Results go to mutants.out/. Exclusions, with their
+# reasons: .cargo/mutants.toml.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 file=${1:?usage: scripts/mutants.sh src/PATH.rs [k/n] [cargo-mutants options]}
 shift
 shard=()
 if [[ ${1:-} =~ ^[0-9]+/[0-9]+$ ]]; then
-    shard=(--shard "$1")
+    shard=(--shard "$1" --sharding round-robin)
     shift
 fi
+module=${file#src/}
+module=${module%.rs}
+module=${module%/mod}
+module=${module//\//::}
+# Targets to build and test (cargo args) and arguments for the test binaries.
 targets=(--cargo-arg=--lib)
 if [[ ${MUTANTS_FULL:-0} == 1 ]]; then
+    opt=1
+    timeout=300
+    filter=()
     case "$file" in
         src/cpu/*) targets+=(--cargo-arg=--test=tracing) ;;
         src/triangulation/*) targets+=(--cargo-arg=--test=triangulation) ;;
         src/complex/*) targets+=(--cargo-arg=--test=complex) ;;
         src/expr/*) targets+=(--cargo-arg=--test=expressions) ;;
     esac
+else
+    opt=0
+    timeout=20
+    filter=(-- "${MUTANTS_TESTS:-$module}")
 fi
 exec cargo mutants --file "$file" "${shard[@]}" \
-    --in-place --baseline=skip --timeout 300 --build-timeout 1200 \
-    --sharding round-robin --cargo-arg=--no-default-features \
-    --cargo-arg=--config=profile.test.package.isomesh.opt-level=1 \
-    --cargo-arg=--config=profile.test.package.isomesh.debug=0 "${targets[@]}" "$@"
+    --in-place --baseline=skip --timeout $timeout --build-timeout 1200 \
+    --cargo-arg=--no-default-features \
+    --cargo-arg=--config=profile.test.package.isomesh.opt-level=$opt \
+    --cargo-arg=--config=profile.test.package.isomesh.debug=0 "${targets[@]}" "$@" \
+    -- "${filter[@]}"
