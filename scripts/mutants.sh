@@ -6,13 +6,15 @@
 #   scripts/mutants.sh src/triangulation/simplex.rs 0/4  # every fourth one
 #
 # Each mutant of FILE is built and checked against FILE's own unit tests (those under its
-# module path, small cases written to be fast), with the crate built without the gpu and cli features,
-# at opt-level 0 and without debug information: on 2 cores a mutant rebuilds in a few
-# seconds. The score is then a lower bound for the whole suite (a mutant these tests miss
-# may still be caught elsewhere); MUTANTS_TESTS=NAME runs the unit tests whose names hold
-# NAME instead (e.g. cpu::solve::tests, without the slower adversarial batches of
-# cpu::solve_adversarial). MUTANTS_FULL=1 runs every unit test and the module's
-# integration test instead, at opt-level 1 (about 20 s a rebuild and 1-2 minutes a mutant).
+# module path, small cases written to be fast), with the crate built without the gpu and
+# cli features, at opt-level 0 and without debug information: on 2 cores a mutant rebuilds
+# in a few seconds. The score is then a lower bound for the whole suite (a mutant these
+# tests miss may still be caught elsewhere). MUTANTS_TESTS=NAME runs the unit tests whose
+# names hold NAME instead (e.g. cpu::solve::tests, without the slower adversarial batches
+# of cpu::solve_adversarial); MUTANTS_TARGET=NAME[,NAME...] runs the integration tests
+# tests/NAME.rs instead (e.g. expressions, for src/expr/parser.rs). MUTANTS_FULL=1 runs every unit test
+# and the module's integration test, at opt-level 1 (about 20 s a rebuild and 1-2 minutes
+# a mutant).
 # A shard `k/n` takes every n-th mutant (round robin), a fixed sample spread over the file.
 # It runs in place, in this tree and its target/: do not edit the tree while it runs; an
 # interrupt (Ctrl-C) puts the file back. Results go to mutants.out/. Exclusions, with their
@@ -42,6 +44,14 @@ if [[ ${MUTANTS_FULL:-0} == 1 ]]; then
         src/complex/*) targets+=(--cargo-arg=--test=complex) ;;
         src/expr/*) targets+=(--cargo-arg=--test=expressions) ;;
     esac
+elif [[ -n ${MUTANTS_TARGET:-} ]]; then
+    opt=0
+    timeout=20
+    targets=()
+    for t in ${MUTANTS_TARGET//,/ }; do
+        targets+=(--cargo-arg=--test="$t")
+    done
+    filter=()
 else
     opt=0
     timeout=20

@@ -345,6 +345,119 @@ fn malformed_inputs_name_kind_and_position() {
 }
 
 #[test]
+fn nesting_limits_names_and_positions_are_exact() {
+    use isomesh::expr::parser::MAX_DEPTH;
+    use ErrorKind::*;
+    let s = Scope::new(2);
+    // Each way of nesting is allowed MAX_DEPTH deep, and refused one level deeper.
+    type Nesting = (&'static str, fn(usize) -> String);
+    let nestings: [Nesting; 5] = [
+        ("parentheses", |n| {
+            format!("{}x{}", "(".repeat(n), ")".repeat(n))
+        }),
+        ("minus signs", |n| format!("{}x", "-".repeat(n))),
+        ("plus signs", |n| format!("{}x", "+".repeat(n))),
+        ("powers", |n| format!("x{}", "^y".repeat(n))),
+        ("calls", |n| {
+            format!("{}x{}", "sin(".repeat(n), ")".repeat(n))
+        }),
+    ];
+    for (what, text) in nestings {
+        assert!(parse_expr(&text(MAX_DEPTH), &s).is_ok(), "{what}");
+        let e = parse_expr(&text(MAX_DEPTH + 1), &s).unwrap_err();
+        assert_eq!(e.kind, TooDeep, "{what}: {e}");
+    }
+    // A unary plus is nothing.
+    assert_eq!(parse_expr("+x", &s).unwrap(), Expr::Var(0));
+    // Lines and columns of an expression spanning lines, and of a system's last line.
+    let e = parse_expr("x +\n  * y", &s).unwrap_err();
+    assert_eq!((e.kind, e.line, e.column), (UnexpectedToken, 2, 3));
+    let e = parse_system("x\ny\n\nx - y", &Scope::new(3)).unwrap_err();
+    assert_eq!((e.kind, e.line), (Dimensions, 4));
+    // Numbers past f64 are malformed numbers, not infinities folded later.
+    assert_eq!(parse_expr("1e400 * x", &s).unwrap_err().kind, BadNumber);
+    // Constants fold.
+    assert_eq!(
+        parse_expr("2 * 3 * x", &s).unwrap(),
+        Expr::mul(Expr::Num(6.0), Expr::Var(0))
+    );
+    // Declared names: letters, digits and '_' not starting with a digit, none taken.
+    let names =
+        |v: &[&str]| Scope::with_names(&v.iter().map(|n| n.to_string()).collect::<Vec<_>>());
+    for good in [&["a", "b"][..], &["_a1", "a_b"], &["u", "v", "w2"]] {
+        assert!(names(good).is_ok(), "{good:?}");
+    }
+    for (bad, kind) in [
+        (&["1x"][..], UnexpectedToken),
+        (&["a-b"], UnexpectedToken),
+        (&[""], UnexpectedToken),
+        (&["a", "a"], DuplicateName),
+        (&["pi"], DuplicateName),
+        (&["e"], DuplicateName),
+        (&["cos"], DuplicateName),
+    ] {
+        assert_eq!(names(bad).unwrap_err().kind, kind, "{bad:?}");
+    }
+}
+
+#[test]
+fn long_chains_are_regrouped_without_changing_their_value() {
+    let s = Scope::new(2);
+    let (x, y) = (2.0, 3.0);
+    // Regrouped, the second half below divides by 1e300 / 1e-300, which overflows: it
+    // stays as written instead of folding to an infinity (x / inf is the 0 that x / 1e300
+    // * 1e-300 underflows to).
+    let e = parse_expr("x * 1 * 1 * 1 * 1 / 1e300 * 1e-300 * 1 * 1 * 1", &s).unwrap();
+    assert_eq!(e.eval(&[x, y]), x / 1e300 * 1e-300);
+    let mut rng = ChaCha8Rng::seed_from_u64(11);
+    for len in [9, 10, 17, 64, 1000] {
+        for _ in 0..20 {
+            // Sums of small integers and products of powers of two are exact in any
+            // grouping: only a wrong operator or a lost term changes them.
+            let (mut sum, mut sum_text) = (x, "x".to_string());
+            let (mut prod, mut prod_text) = (y, "y".to_string());
+            for _ in 0..len {
+                let v: i32 = rng.random_range(1..50);
+                let term = if rng.random_bool(0.3) {
+                    ("y", y)
+                } else {
+                    ("", f64::from(v))
+                };
+                let term_text = if term.0.is_empty() {
+                    v.to_string()
+                } else {
+                    "y".into()
+                };
+                if rng.random_bool(0.5) {
+                    sum -= term.1;
+                    sum_text += &format!(" - {term_text}");
+                } else {
+                    sum += term.1;
+                    sum_text += &format!(" + {term_text}");
+                }
+                let p = 2f64.powi(rng.random_range(-3..4));
+                let (p, p_text) = if rng.random_bool(0.3) {
+                    (x, "x".into())
+                } else {
+                    (p, p.to_string())
+                };
+                if rng.random_bool(0.5) {
+                    prod /= p;
+                    prod_text += &format!(" / {p_text}");
+                } else {
+                    prod *= p;
+                    prod_text += &format!(" * {p_text}");
+                }
+            }
+            for (text, want) in [(&sum_text, sum), (&prod_text, prod)] {
+                let got = parse_expr(text, &s).unwrap().eval(&[x, y]);
+                assert_eq!(got, want, "{text}");
+            }
+        }
+    }
+}
+
+#[test]
 fn operators_bind_as_in_mathematics() {
     let s = Scope::new(2);
     let ev = |t: &str| parse_expr(t, &s).unwrap().eval(&[2.0, 3.0]);

@@ -97,15 +97,8 @@ fn raw_levels<const W: usize>(
             .par_iter()
             .map(|key| prev_codec.decode(key).cofacet_count())
             .sum();
-        let held: usize = levels
-            .iter()
-            .map(|l: &RawLevel| l.cells.facets.len() * 4 + l.cells.offsets.len() * 5)
-            .sum::<usize>()
-            + prev.len() * (W * 8 + 1);
-        // On top of the heap in use (the sample, the levels so far, `prev`): the pairs, and
-        // the next level's keys.
-        let need = crate::memory::in_use(held + s.memory_bytes())
-            + count * (std::mem::size_of::<([u64; W], u32)>() + W * 8 + 5) as u64;
+        let need = crate::memory::in_use(held_bytes::<W>(&levels, prev.len()) + s.memory_bytes())
+            + peak_bytes::<W>(count);
         if need > max_memory {
             return Err(Error::Trace(format!(
                 "the cell complex needs about {} for its {j}-cells, over the memory limit of {} \
@@ -137,10 +130,6 @@ fn raw_levels<const W: usize>(
             cells.offsets.push(0);
         }
         cells.interior = cells.len();
-        if j == 1 {
-            // Vertices of the complex: S only (the rim's crossings lie outside).
-            prev_mixed.truncate(n);
-        }
         let kept = if keep_keys {
             keys.iter().flatten().copied().collect()
         } else {
@@ -156,6 +145,22 @@ fn raw_levels<const W: usize>(
         });
     }
     Ok((levels, defects))
+}
+
+/// Bytes held while level j is built: the levels 1..j-1 (facet indices, offsets and mixed
+/// flags) and level j - 1's `prev` keys of `W` words with their mixed flags.
+fn held_bytes<const W: usize>(levels: &[RawLevel], prev: usize) -> usize {
+    levels
+        .iter()
+        .map(|l| l.cells.facets.len() * 4 + l.cells.offsets.len() * 5)
+        .sum::<usize>()
+        + prev * (W * 8 + 1)
+}
+
+/// Bytes that building a level from `cofacets` cofacets adds at its peak: the (key, index)
+/// pairs, and for the new level at most as many keys, facet indices and mixed flags.
+fn peak_bytes<const W: usize>(cofacets: u64) -> u64 {
+    cofacets * (std::mem::size_of::<([u64; W], u32)>() + W * 8 + 5) as u64
 }
 
 /// (cofacet key, index) for every cofacet of every simplex in `keys`.
@@ -275,5 +280,251 @@ fn clip(s: &Sample, domain: &Domain, raw: Vec<RawLevel>, d: usize, m: usize) -> 
         interior_vertices: n,
         levels,
         stats: ComplexStats::default(),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use std::collections::HashMap;
+
+    use super::*;
+    use crate::expr::{preset, Problem};
+    use crate::trace::{trace, CpuOracle, TraceOptions};
+    use crate::triangulation::Simplex;
+
+    /// The sphere of radius 1 in R^3 at a coarse edge (a few hundred crossed edges), traced
+    /// inside `bbox`.
+    fn sphere(bbox: Option<Vec<[f64; 2]>>) -> (Problem, Sample) {
+        let mut p = preset("sphere", &[]).unwrap();
+        p.triangulation.edge = Some(0.35);
+        let tri = p.triangulation.build(3).unwrap();
+        let opts = TraceOptions {
+            seeds: p.seeds.clone(),
+            bbox,
+            ..TraceOptions::default()
+        };
+        let s = trace(&p.system, &tri, &CpuOracle::new(&p.system), &opts).unwrap();
+        (p, s)
+    }
+
+    fn keyed(p: &Problem, s: &Sample, bbox: Option<&[[f64; 2]]>) -> (Complex, CellKeys) {
+        let (c, keys) = build(s, &Domain::new(&p.system, bbox), u64::MAX, None, true).unwrap();
+        (c, keys.unwrap())
+    }
+
+    /// The cells of level j decoded from their keys.
+    fn cells(s: &Sample, keys: &CellKeys, j: usize) -> Vec<Simplex> {
+        let codec = s.codec();
+        let bits = (codec.coord_bits() + 1).min(32);
+        let cj = KeyCodec::new(codec.ambient_dim(), codec.simplex_dim() + j, bits).unwrap();
+        keys.keys[j - 1]
+            .chunks_exact(keys.words)
+            .map(|k| cj.decode(&k[..cj.words()]))
+            .collect()
+    }
+
+    /// Sorted facet lists of the cofacets of `lower` (simplex -> its index), found by brute
+    /// force: every cofacet of every simplex, with the indices of its faces among `lower`.
+    fn cofaces_of(lower: &[Simplex]) -> Vec<(Simplex, Vec<u32>)> {
+        let index: HashMap<&Simplex, u32> = lower
+            .iter()
+            .enumerate()
+            .map(|(i, x)| (x, i as u32))
+            .collect();
+        let mut up: HashMap<Simplex, Vec<u32>> = HashMap::new();
+        for x in lower {
+            for tau in x.cofacets() {
+                let mut faces: Vec<u32> = tau
+                    .facets()
+                    .iter()
+                    .filter_map(|f| index.get(f).copied())
+                    .collect();
+                faces.sort_unstable();
+                up.insert(tau, faces);
+            }
+        }
+        let mut v: Vec<_> = up.into_iter().collect();
+        v.sort_by(|a, b| a.1.cmp(&b.1));
+        v
+    }
+
+    fn sorted(f: &[u32]) -> Vec<u32> {
+        let mut f = f.to_vec();
+        f.sort_unstable();
+        f
+    }
+
+    #[test]
+    fn each_level_is_the_cofacets_of_the_one_below_with_their_faces() {
+        let (p, s) = sphere(None);
+        assert!(s.len() > 300 && s.rim_len() == 0, "{}", s.len());
+        let (c, keys) = keyed(&p, &s, None);
+        let mut lower: Vec<Simplex> = (0..s.len()).map(|i| s.simplex(i)).collect();
+        for j in 1..=2 {
+            let got = cells(&s, &keys, j);
+            let level = c.level(j);
+            assert_eq!(got.len(), level.len(), "level {j}");
+            let mut mine: Vec<(Simplex, Vec<u32>)> = got
+                .iter()
+                .enumerate()
+                .map(|(i, x)| (x.clone(), sorted(level.facets(i))))
+                .collect();
+            mine.sort_by(|a, b| a.1.cmp(&b.1));
+            let want = cofaces_of(&lower);
+            assert_eq!(mine.len(), want.len(), "level {j}");
+            for (a, b) in mine.iter().zip(&want) {
+                assert_eq!(a, b, "level {j}");
+            }
+            // Closed: no boundary, nothing mixed, every edge has two ends.
+            assert_eq!(level.interior(), level.len());
+            assert!(keys.mixed[j - 1].iter().all(|m| !m));
+            if j == 1 {
+                assert!((0..level.len()).all(|i| level.facets(i).len() == 2));
+            }
+            lower = got;
+        }
+        assert_eq!(c.vertex_count(), s.len());
+        assert_eq!(c.points(), &s.points()[..]);
+        let n = c.counts();
+        assert_eq!(n[0] as i64 - n[1] as i64 + n[2] as i64, 2, "{n:?}");
+        assert!(keys.defects.is_empty() && c.stats.defects == 0);
+    }
+
+    #[test]
+    fn a_box_cuts_the_mixed_cells_where_they_leave_it() {
+        let top = 0.3;
+        let bbox = vec![[-2.0, 2.0], [-2.0, 2.0], [-2.0, top]];
+        let (p, s) = sphere(Some(bbox.clone()));
+        assert!(s.rim_len() > 10, "{}", s.rim_len());
+        let (c, keys) = keyed(&p, &s, Some(&bbox));
+        let n = s.len();
+        let (edges, faces) = (c.level(1), c.level(2));
+        let mixed_edges = keys.mixed[0].iter().filter(|&&m| m).count();
+        assert!(mixed_edges > 10);
+        // One boundary vertex per mixed edge, on the box's top face, between the edge's
+        // ends.
+        assert_eq!(c.vertex_count(), n + mixed_edges);
+        for b in n..c.vertex_count() {
+            assert!((c.point(b)[2] - top).abs() < 1e-12, "{:?}", c.point(b));
+            let r: f64 = c.point(b).iter().map(|x| x * x).sum::<f64>().sqrt();
+            assert!((r - 1.0).abs() < 0.1, "{r}");
+        }
+        // Interior edges: two vertices of S; mixed ones: one of S and its boundary vertex,
+        // in order.
+        let mut next = n as u32;
+        for i in 0..edges.interior() {
+            let f = edges.facets(i);
+            assert_eq!(f.len(), 2);
+            if keys.mixed[0][i] {
+                assert_eq!(f.iter().filter(|&&v| (v as usize) < n).count(), 1, "{f:?}");
+                assert_eq!(f[1], next, "{f:?}");
+                next += 1;
+            } else {
+                assert!(f.iter().all(|&v| (v as usize) < n), "{f:?}");
+            }
+        }
+        // Boundary edges: the cuts of the mixed polygons, each joining the boundary
+        // vertices of two of its mixed edges.
+        let mixed_faces: Vec<usize> = (0..faces.interior())
+            .filter(|&i| keys.mixed[1][i])
+            .collect();
+        assert_eq!(edges.len() - edges.interior(), mixed_faces.len());
+        for (t, &i) in mixed_faces.iter().enumerate() {
+            let cut = edges.facets(edges.interior() + t);
+            assert_eq!(cut.len(), 2, "{cut:?}");
+            assert!(cut.iter().all(|&v| v as usize >= n));
+            let f = faces.facets(i);
+            assert_eq!(*f.last().unwrap() as usize, edges.interior() + t, "{f:?}");
+            for &v in cut {
+                let e = (0..edges.interior())
+                    .find(|&e| edges.facets(e)[1] == v)
+                    .unwrap();
+                assert!(f.contains(&(e as u32)), "{f:?} lacks edge {e}");
+            }
+        }
+        assert_eq!(faces.interior(), faces.len());
+        // A sphere cut below its north cap: a disk, bounded by one circle.
+        let n = c.counts();
+        assert_eq!(n[0] as i64 - n[1] as i64 + n[2] as i64, 1, "{n:?}");
+        assert_eq!(c.boundary_counts()[0], c.boundary_counts()[1]);
+        let t = c.topology();
+        assert!(t.manifold && !t.closed, "{t:?}");
+        assert_eq!(t.betti_mod2, Some(vec![1, 0, 0]), "{t:?}");
+        assert_eq!(t.boundary_euler_characteristic, 0, "{t:?}");
+    }
+
+    #[test]
+    fn the_memory_estimate_covers_what_a_level_holds() {
+        let (p, s) = sphere(None);
+        let codec = s.codec();
+        let bits = (codec.coord_bits() + 1).min(32);
+        let words = KeyCodec::new(3, 3, bits)
+            .unwrap()
+            .words()
+            .max(codec.words());
+        const W: usize = 2;
+        assert_eq!(words, W);
+        let (levels, _) = raw_levels::<W>(&s, bits, u64::MAX, None, true).unwrap();
+        // Level 1, built from S: its pairs (as many as counted) and its own arrays.
+        let prev: Vec<[u64; W]> = (0..s.len())
+            .map(|i| {
+                let mut key = [0; W];
+                key[..s.key(i).len()].copy_from_slice(s.key(i));
+                key
+            })
+            .collect();
+        let cj = KeyCodec::new(3, 2, bits).unwrap();
+        let pairs = cofacet_pairs::<W>(&prev, codec, &cj).unwrap();
+        let count: u64 = prev.iter().map(|k| codec.decode(k).cofacet_count()).sum();
+        assert_eq!(pairs.len() as u64, count);
+        let l = &levels[0];
+        let peak = size_of_val(&pairs[..])
+            + size_of_val(&l.keys[..])
+            + size_of_val(&l.cells.facets[..])
+            + size_of_val(&l.mixed[..]);
+        let estimate = peak_bytes::<W>(count) as usize;
+        assert!(
+            peak <= estimate && estimate <= 2 * peak,
+            "{peak} {estimate}"
+        );
+        // What is held while level 2 is built: level 1, and its keys with their flags.
+        let held = size_of_val(&l.cells.facets[..])
+            + size_of_val(&l.cells.offsets[..])
+            + size_of_val(&l.mixed[..])
+            + l.cells.len() * (W * 8 + 1);
+        let estimate = held_bytes::<W>(&levels[..1], l.cells.len());
+        assert!(
+            held <= estimate && estimate <= held + 16,
+            "{held} {estimate}"
+        );
+        // The check refuses exactly past its estimate (no counting allocator here: the
+        // heap in use is the estimate).
+        let need =
+            (held_bytes::<W>(&[], s.len()) + s.memory_bytes()) as u64 + peak_bytes::<W>(count);
+        let domain = Domain::new(&p.system, None);
+        let e = build(&s, &domain, need - 1, None, false).err().unwrap();
+        assert!(e.to_string().contains("for its 1-cells"), "{e}");
+        if let Err(e) = build(&s, &domain, need, None, false) {
+            assert!(e.to_string().contains("for its 2-cells"), "{e}");
+        }
+    }
+
+    #[test]
+    fn a_cancelled_or_too_large_construction_is_refused() {
+        let (p, s) = sphere(None);
+        let domain = Domain::new(&p.system, None);
+        let e = build(&s, &domain, 1 << 10, None, false).err().unwrap();
+        assert!(e.to_string().contains("over the memory limit"), "{e}");
+        let cancel = AtomicBool::new(true);
+        let e = build(&s, &domain, u64::MAX, Some(&cancel), false)
+            .err()
+            .unwrap();
+        assert!(e.to_string().contains("interrupted"), "{e}");
+        let ok = build(&s, &domain, u64::MAX, Some(&AtomicBool::new(false)), false).unwrap();
+        assert!(ok.1.is_none());
+        assert_eq!(
+            ok.0.counts(),
+            Complex::build(&s, &p.system, None).unwrap().counts()
+        );
     }
 }
