@@ -1,7 +1,8 @@
 //! Measurements behind `isomesh bench` and `cargo bench`: the intersection oracle alone on
 //! the same random batches for every backend, and whole traces of the reference cases of
 //! the C++ library (GUDHI's Coxeter_triangulation, one thread, on a 2-core machine), whose
-//! figures live in `benches/reference.toml`.
+//! figures live in `benches/reference.toml`, and surfaces in R^3 against a grid mesher
+//! (`surfaces`, with the `surface-nets` feature).
 
 use std::collections::BTreeMap;
 use std::time::Instant;
@@ -14,6 +15,9 @@ use crate::cpu::solve::Status;
 use crate::error::{Error, Result};
 use crate::expr::{preset, ClosureFunction, Problem};
 use crate::trace::{trace, Oracle, Sample, TraceOptions};
+
+#[cfg(feature = "surface-nets")]
+pub mod surfaces;
 
 /// A reference case: a preset at an edge length, and what the C++ library does with it.
 /// The figures are data kept with the benchmarks (`benches/reference.toml`, which says how

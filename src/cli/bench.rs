@@ -6,6 +6,7 @@
 use std::path::PathBuf;
 
 use clap::{Args, ValueEnum};
+use isomesh::bench::surfaces::{crossover, measure_sizes, CHUNK, SURFACES};
 use isomesh::bench::{timed, trace_case, OracleBatch, ReferenceCase};
 use isomesh::export::plot::{write_charts, Chart, Series, PALETTE};
 use isomesh::export::write_atomic;
@@ -19,15 +20,18 @@ use serde_json::{json, Value};
 
 use super::trace::Backend;
 
-/// Which reference traces to run.
+/// Which whole traces to run.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
 pub enum TraceSet {
     /// No traces.
     None,
-    /// The cases of at most 200,000 simplices.
+    /// The reference cases of at most 200,000 simplices.
     Quick,
-    /// Every case (minutes on a small machine).
+    /// Every reference case (minutes on a small machine).
     All,
+    /// Surfaces in R^3 (trace + complex + triangles) against the grid mesher
+    /// fast-surface-nets (sampling + meshing) at matched vertex counts, on the CPU.
+    Surfaces,
 }
 
 /// Flags of `isomesh bench`.
@@ -43,9 +47,13 @@ pub struct BenchArgs {
     /// Runs per measurement; the median is reported.
     #[arg(long, default_value_t = 3)]
     pub repeats: usize,
-    /// Reference traces: none, quick (up to 200,000 simplices) or all.
-    #[arg(long, value_enum, default_value = "quick")]
-    pub traces: TraceSet,
+    /// Whole traces, a list: none, quick (reference cases up to 200,000 simplices), all
+    /// (every reference case), surfaces (against a grid mesher, sizes from --grid).
+    #[arg(long, value_enum, value_delimiter = ',', default_value = "quick")]
+    pub traces: Vec<TraceSet>,
+    /// Grid sizes (interior samples per axis, multiples of 64) for --traces surfaces.
+    #[arg(long, value_delimiter = ',', default_value = "64,128,256,512,1024")]
+    pub grid: Vec<u32>,
     /// cpu: the CPU only; gpu: a GPU is required; auto: the best adapter if any (software
     /// ones too, marked as such).
     #[arg(long, value_enum, default_value = "auto")]
@@ -144,9 +152,10 @@ fn run_in_pool(args: &BenchArgs, threads: usize) -> Result<()> {
     let oracle_rows = oracle_table(args, gpu.as_ref(), &precisions)?;
     let eval_rows = eval_table(args, gpu.as_ref(), &precisions)?;
     let trace_rows = trace_table(args, gpu.as_ref())?;
+    let (surface_rows, crossovers) = surface_table(args)?;
 
     if let Some(path) = &args.png {
-        plot(path, &oracle_rows, &trace_rows, &precisions)?;
+        plot(path, &oracle_rows, &trace_rows, &surface_rows, &precisions)?;
         say!("\nwrote {}", path.display());
     }
     if let Some(path) = &args.json {
@@ -158,6 +167,8 @@ fn run_in_pool(args: &BenchArgs, threads: usize) -> Result<()> {
             "oracle": oracle_rows,
             "vertex_eval": eval_rows,
             "traces": trace_rows,
+            "surfaces": surface_rows,
+            "crossover_vertices": crossovers,
         });
         write_atomic(path, |w| {
             serde_json::to_writer_pretty(&mut *w, &report).map_err(std::io::Error::other)
@@ -295,10 +306,12 @@ fn eval_table(args: &BenchArgs, gpu: Option<&Gpu>, precisions: &[Precision]) -> 
 /// Whole traces of the reference cases on the CPU and, when there is one, the GPU.
 fn trace_table(args: &BenchArgs, gpu: Option<&Gpu>) -> Result<Vec<Value>> {
     let mut rows = Vec::new();
-    let limit = match args.traces {
-        TraceSet::None => return Ok(rows),
-        TraceSet::Quick => 200_000,
-        TraceSet::All => u64::MAX,
+    let limit = if args.traces.contains(&TraceSet::All) {
+        u64::MAX
+    } else if args.traces.contains(&TraceSet::Quick) {
+        200_000
+    } else {
+        return Ok(rows);
     };
     say!(
         "\nTraces of the reference cases (C++: GUDHI, one thread), median of {}\n",
@@ -355,10 +368,70 @@ fn trace_table(args: &BenchArgs, gpu: Option<&Gpu>) -> Result<Vec<Value>> {
     Ok(rows)
 }
 
+/// Surfaces in R^3 against the grid mesher: a row per surface and size, and each surface's
+/// crossover (the vertex count from which isomesh is faster; null if it is nowhere).
+fn surface_table(args: &BenchArgs) -> Result<(Vec<Value>, serde_json::Map<String, Value>)> {
+    let (mut out, mut crossovers) = (Vec::new(), serde_json::Map::new());
+    if !args.traces.contains(&TraceSet::Surfaces) {
+        return Ok((out, crossovers));
+    }
+    if let Some(&bad) = args.grid.iter().find(|&&n| n == 0 || n % CHUNK != 0) {
+        return Err(Error::Spec(format!(
+            "--grid {bad}: sizes must be positive multiples of {CHUNK}"
+        )));
+    }
+    let mut sizes = args.grid.clone();
+    sizes.sort_unstable();
+    sizes.dedup();
+    say!(
+        "\nSurfaces in R^3: isomesh (trace + complex + triangles) against fast-surface-nets (f sampled in f32 + meshing, in {CHUNK}^3 chunks), {} threads, median of {}\n",
+        rayon::current_num_threads(),
+        args.repeats
+    );
+    say!("| surface | grid | grid vertices | isomesh vertices | grid ms | isomesh ms (trace + complex + triangles) | isomesh / grid |");
+    say!("|---|---|---|---|---|---|---|");
+    for s in &SURFACES {
+        let rows = measure_sizes(s, &sizes, args.repeats, |r| {
+            let ms = |x: f64| x * 1e3;
+            say!(
+                "| {} | {}^3 | {} | {} | {:.1} | {:.1} + {:.1} + {:.1} = {:.1} | {:.2} |",
+                s.preset,
+                r.n,
+                r.grid.vertices,
+                r.isomesh.vertices,
+                ms(r.grid_s),
+                ms(r.stages.trace_s),
+                ms(r.stages.complex_s),
+                ms(r.stages.triangles_s),
+                ms(r.stages.total()),
+                r.ratio()
+            );
+            out.push(json!({
+                "surface": s.preset, "n": r.n, "grid_vertices": r.grid.vertices,
+                "grid_triangles": r.grid.triangles, "grid_s": r.grid_s, "edge": r.edge,
+                "isomesh_vertices": r.isomesh.vertices, "isomesh_triangles": r.isomesh.triangles,
+                "trace_s": r.stages.trace_s, "complex_s": r.stages.complex_s,
+                "triangles_s": r.stages.triangles_s, "isomesh_s": r.stages.total(),
+                "ratio": r.ratio(),
+            }));
+        })?;
+        crossovers.insert(s.preset.into(), json!(crossover(&rows)));
+    }
+    say!("");
+    for (name, c) in &crossovers {
+        match c.as_f64() {
+            Some(v) => say!("{name}: isomesh is faster from about {v:.3e} vertices up"),
+            None => say!("{name}: isomesh is slower at every size measured"),
+        }
+    }
+    Ok((out, crossovers))
+}
+
 fn plot(
     path: &std::path::Path,
     oracle: &[Value],
     traces: &[Value],
+    surfaces: &[Value],
     precisions: &[Precision],
 ) -> Result<()> {
     let mut names = vec!["cpu".to_string()];
@@ -414,6 +487,46 @@ fn plot(
                 .enumerate()
                 .map(|(i, r)| (i as f64, r["short"].as_str().unwrap_or("?").to_string()))
                 .collect(),
+        });
+    }
+    if !surfaces.is_empty() {
+        // isomesh in the palette's blue, green and orange; the grid mesher in red, purple, brown.
+        const GRID_COLORS: [[u8; 3]; 3] = [PALETTE[1], PALETTE[3], [140, 86, 75]];
+        let mut series = Vec::new();
+        for (i, s) in SURFACES.iter().enumerate() {
+            for (method, key, color) in [
+                ("isomesh", "isomesh_s", PALETTE[2 * i % PALETTE.len()]),
+                ("surface nets", "grid_s", GRID_COLORS[i]),
+            ] {
+                let points = surfaces
+                    .iter()
+                    .filter(|r| r["surface"] == s.preset)
+                    .filter_map(|r| {
+                        let v = r["grid_vertices"].as_f64()?;
+                        Some((v.log10(), r[key].as_f64()? * 1e3))
+                    })
+                    .collect();
+                series.push(Series {
+                    name: format!("{} {method}", s.preset),
+                    color,
+                    points,
+                });
+            }
+        }
+        // Powers of ten of the vertex counts on the (linear in log10) x axis.
+        let logs = surfaces.iter().filter_map(|r| r["grid_vertices"].as_f64());
+        let (lo, hi) = logs.fold((f64::MAX, 0.0f64), |(a, b), v| {
+            (a.min(v.log10()), b.max(v.log10()))
+        });
+        let x_ticks = (lo.ceil() as i32..=hi.floor() as i32)
+            .map(|e| (f64::from(e), format!("1e{e}")))
+            .collect();
+        charts.push(Chart {
+            title: "Surfaces in R^3 against surface nets".into(),
+            x_label: "vertices".into(),
+            y_label: "milliseconds".into(),
+            series,
+            x_ticks,
         });
     }
     if charts.is_empty() {

@@ -8,7 +8,7 @@ use rayon::prelude::*;
 use super::{Complex, ComplexStats, Level};
 use crate::error::{Error, Result};
 use crate::trace::{with_width, Domain, Sample};
-use crate::triangulation::KeyCodec;
+use crate::triangulation::{KeyCodec, Simplex, MAX_DIM};
 
 /// The cells of one dimension before clipping: their facets (indices one level lower),
 /// whether they have both an inside and an outside crossing, and (when kept) their keys.
@@ -95,7 +95,13 @@ fn raw_levels<const W: usize>(
         // The pairs are the peak: refuse up front rather than exhaust memory.
         let count: u64 = prev
             .par_iter()
-            .map(|key| prev_codec.decode(key).cofacet_count())
+            .map_init(
+                || scratch(d),
+                |sigma, key| {
+                    prev_codec.decode_into(key, sigma);
+                    sigma.cofacet_count()
+                },
+            )
             .sum();
         let need = crate::memory::in_use(held_bytes::<W>(&levels, prev.len()) + s.memory_bytes())
             + peak_bytes::<W>(count);
@@ -163,6 +169,12 @@ fn peak_bytes<const W: usize>(cofacets: u64) -> u64 {
     cofacets * (std::mem::size_of::<([u64; W], u32)>() + W * 8 + 5) as u64
 }
 
+/// A simplex of R^d to decode keys into (decoding into one per thread saves building a
+/// new one per key).
+fn scratch(d: usize) -> Simplex {
+    Simplex::vertex(&[0; MAX_DIM][..d]).expect("the codec's d is valid")
+}
+
 /// (cofacet key, index) for every cofacet of every simplex in `keys`.
 fn cofacet_pairs<const W: usize>(
     keys: &[[u64; W]],
@@ -172,26 +184,35 @@ fn cofacet_pairs<const W: usize>(
     if keys.len() > u32::MAX as usize {
         return Err(Error::Trace("too many cells for 32-bit indices".into()));
     }
-    keys.par_iter()
+    const CHUNK: usize = 256;
+    let d = codec.ambient_dim();
+    let parts = keys
+        .par_chunks(CHUNK)
         .enumerate()
-        .with_min_len(256)
-        .try_fold(Vec::new, |mut acc, (i, key)| -> Result<Vec<_>> {
+        .map(|(c, chunk)| -> Result<Vec<_>> {
+            let mut sigma = scratch(d);
+            let mut acc = Vec::with_capacity(chunk.len() * 4);
             let mut out = [0u64; W];
-            let mut err = None;
-            codec.decode(key).for_each_cofacet(|tau| {
-                if err.is_none() {
-                    match cofacet_codec.encode(tau, &mut out) {
-                        Ok(()) => acc.push((out, i as u32)),
-                        Err(e) => err = Some(e),
+            for (j, key) in chunk.iter().enumerate() {
+                let i = (c * CHUNK + j) as u32;
+                let mut err = None;
+                codec.decode_into(key, &mut sigma);
+                sigma.for_each_cofacet(|tau| {
+                    if err.is_none() {
+                        match cofacet_codec.encode(tau, &mut out) {
+                            Ok(()) => acc.push((out, i)),
+                            Err(e) => err = Some(e),
+                        }
                     }
+                });
+                if let Some(e) = err {
+                    return Err(e);
                 }
-            });
-            err.map_or(Ok(acc), Err)
+            }
+            Ok(acc)
         })
-        .try_reduce(Vec::new, |mut a, mut b| {
-            a.append(&mut b);
-            Ok(a)
-        })
+        .collect::<Result<Vec<_>>>()?;
+    Ok(parts.concat())
 }
 
 /// Cuts the mixed cells at the domain's boundary: each mixed j-cell keeps its facets and
@@ -290,7 +311,6 @@ mod tests {
     use super::*;
     use crate::expr::{preset, Problem};
     use crate::trace::{trace, CpuOracle, TraceOptions};
-    use crate::triangulation::Simplex;
 
     /// The sphere of radius 1 in R^3 at a coarse edge (a few hundred crossed edges), traced
     /// inside `bbox`.

@@ -26,18 +26,34 @@ impl Surface {
     pub fn new(c: &Complex, f: Option<&dyn ImplicitFunction>) -> Self {
         let edges = c.level(1);
         let faces = c.level(2);
-        let polys: Vec<Option<Vec<u32>>> = (0..faces.len())
+        // In chunks, each into flat arrays with reused scratch: no allocation per polygon.
+        const CHUNK: usize = 2048;
+        let chunks: Vec<(Vec<u32>, Vec<u32>, usize)> = (0..faces.len().div_ceil(CHUNK))
             .into_par_iter()
-            .with_min_len(1024)
-            .map(|i| cycle(faces.facets(i).iter().map(|&e| edges.facets(e as usize))))
+            .map(|k| {
+                let range = k * CHUNK..((k + 1) * CHUNK).min(faces.len());
+                let (mut ends, mut vertices, mut bad) = (Vec::new(), Vec::new(), 0);
+                let (mut pairs, mut order) = (Vec::new(), Vec::new());
+                for i in range {
+                    let edges_of = faces.facets(i).iter().map(|&e| edges.facets(e as usize));
+                    if cycle(edges_of, &mut pairs, &mut order) {
+                        vertices.extend_from_slice(&order);
+                    } else {
+                        bad += 1;
+                    }
+                    ends.push(vertices.len() as u32);
+                }
+                (ends, vertices, bad)
+            })
             .collect();
-        let bad_cells = polys.iter().filter(|p| p.is_none()).count();
-        let mut offsets = Vec::with_capacity(polys.len() + 1);
-        let mut vertices = Vec::new();
+        let bad_cells = chunks.iter().map(|c| c.2).sum();
+        let mut offsets = Vec::with_capacity(faces.len() + 1);
+        let mut vertices = Vec::with_capacity(chunks.iter().map(|c| c.1.len()).sum());
         offsets.push(0);
-        for p in &polys {
-            vertices.extend(p.iter().flatten());
-            offsets.push(vertices.len() as u32);
+        for (ends, verts, _) in &chunks {
+            let base = vertices.len() as u32;
+            offsets.extend(ends.iter().map(|e| base + e));
+            vertices.extend_from_slice(verts);
         }
         let mut s = Surface {
             offsets,
@@ -199,26 +215,37 @@ impl Surface {
     }
 }
 
-/// The vertices of a polygon in cyclic order from its edges (pairs of vertex indices), or
-/// `None` when the edges do not form one cycle.
-fn cycle<'a>(edges: impl Iterator<Item = &'a [u32]>) -> Option<Vec<u32>> {
-    let mut pairs: Vec<[u32; 2]> = edges
-        .map(|e| <[u32; 2]>::try_from(e).ok())
-        .collect::<Option<_>>()?;
+/// The vertices of a polygon in cyclic order from its edges (pairs of vertex indices), into
+/// `order`; false when the edges do not form one cycle. `pairs` is scratch.
+fn cycle<'a>(
+    edges: impl Iterator<Item = &'a [u32]>,
+    pairs: &mut Vec<[u32; 2]>,
+    order: &mut Vec<u32>,
+) -> bool {
+    pairs.clear();
+    order.clear();
+    for e in edges {
+        match <[u32; 2]>::try_from(e) {
+            Ok(e) => pairs.push(e),
+            Err(_) => return false,
+        }
+    }
     if pairs.len() < 3 {
-        return None;
+        return false;
     }
     let first = pairs.swap_remove(0);
-    let mut order = vec![first[0], first[1]];
+    order.extend_from_slice(&first);
     while !pairs.is_empty() {
         let last = *order.last().expect("non-empty");
-        let i = pairs.iter().position(|e| e.contains(&last))?;
+        let Some(i) = pairs.iter().position(|e| e.contains(&last)) else {
+            return false;
+        };
         let e = pairs.swap_remove(i);
         let next = if e[0] == last { e[1] } else { e[0] };
         if pairs.is_empty() {
-            return (next == order[0]).then_some(order);
+            return next == order[0];
         }
         order.push(next);
     }
-    None
+    false
 }

@@ -51,6 +51,8 @@ struct PointWork {
     values: Vec<f64>,
     lambda: Vec<f64>,
     vkey: Vec<u64>,
+    /// The simplex whose point is computed (decoded into, not built anew each time).
+    simplex: Simplex,
 }
 
 impl Sample {
@@ -94,13 +96,16 @@ impl Sample {
             values: vec![0.0; (k + 1) * k],
             lambda: vec![0.0; k + 1],
             vkey: vec![0; self.codec.words()],
+            simplex: Simplex::vertex(&[0; crate::MAX_DIM][..self.ambient_dim()])
+                .expect("the codec's d is valid"),
         }
     }
 
     /// Point `i` into `out` (d coordinates).
     fn point_into(&self, i: usize, w: &mut PointWork, out: &mut [f64]) {
         let k = self.codim();
-        let s = self.simplex(i);
+        self.codec.decode_into(self.key(i), &mut w.simplex);
+        let s = &w.simplex;
         let mut found = true;
         s.for_each_vertex(|j, v| {
             let at = match self.codec.encode_vertex(v, &mut w.vkey) {
