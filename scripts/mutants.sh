@@ -21,6 +21,8 @@
 # reasons: .cargo/mutants.toml.
 set -euo pipefail
 cd "$(dirname "$0")/.."
+# Mutants make property tests fail on purpose: their cases are not saved into tests/.
+export PROPTEST_DISABLE_FAILURE_PERSISTENCE=1
 file=${1:?usage: scripts/mutants.sh src/PATH.rs [k/n] [cargo-mutants options]}
 shift
 shard=()
