@@ -24,6 +24,19 @@ use crate::trace::CpuOracle;
 /// Cells per chunk edge of the grid mesher.
 pub const CHUNK: u32 = 64;
 
+/// The largest grid size: 8192^3 samples (about 2 x 10^8 vertices on the sphere).
+pub const MAX_GRID: u32 = 8192;
+
+/// Checks a grid size: a positive multiple of [`CHUNK`], at most [`MAX_GRID`].
+pub fn check_grid(n: u32) -> Result<()> {
+    if n == 0 || n % CHUNK != 0 || n > MAX_GRID {
+        return Err(Error::Spec(format!(
+            "grid size {n}: must be a positive multiple of {CHUNK}, at most {MAX_GRID}"
+        )));
+    }
+    Ok(())
+}
+
 /// A surface of the comparison: a preset and its hand-written f32 twin on a cube.
 #[derive(Clone, Copy, Debug)]
 pub struct GridSurface {
@@ -64,15 +77,6 @@ pub const SURFACES: [GridSurface; 3] = [
 ];
 
 impl GridSurface {
-    /// The surface of preset `name`.
-    pub fn named(name: &str) -> Result<GridSurface> {
-        SURFACES
-            .iter()
-            .copied()
-            .find(|s| s.preset == name)
-            .ok_or_else(|| Error::Spec(format!("no grid surface named {name:?}")))
-    }
-
     /// Grid spacing for `n` interior samples per axis (n + 2 samples across the cube).
     pub fn spacing(&self, n: u32) -> f64 {
         2.0 * self.half_width / f64::from(n + 1)
@@ -88,14 +92,10 @@ pub struct GridMesh {
     pub triangles: usize,
 }
 
-/// Samples f on the grid of `n` interior samples per axis (n a multiple of [`CHUNK`]) and
-/// meshes it with surface nets, chunk by chunk in parallel.
+/// Samples f on the grid of `n` interior samples per axis (see [`check_grid`]) and meshes
+/// it with surface nets, chunk by chunk in parallel.
 pub fn surface_nets_mesh(s: &GridSurface, n: u32) -> Result<GridMesh> {
-    if n == 0 || n % CHUNK != 0 {
-        return Err(Error::Spec(format!(
-            "grid size {n}: must be a positive multiple of {CHUNK}"
-        )));
-    }
+    check_grid(n)?;
     let per_axis = n / CHUNK;
     let h = s.spacing(n) as f32;
     let a = s.half_width as f32;

@@ -6,7 +6,7 @@
 use std::path::PathBuf;
 
 use clap::{Args, ValueEnum};
-use isomesh::bench::surfaces::{crossover, measure_sizes, CHUNK, SURFACES};
+use isomesh::bench::surfaces::{check_grid, crossover, measure_sizes, CHUNK, SURFACES};
 use isomesh::bench::{timed, trace_case, OracleBatch, ReferenceCase};
 use isomesh::export::plot::{write_charts, Chart, Series, PALETTE};
 use isomesh::export::write_atomic;
@@ -375,10 +375,9 @@ fn surface_table(args: &BenchArgs) -> Result<(Vec<Value>, serde_json::Map<String
     if !args.traces.contains(&TraceSet::Surfaces) {
         return Ok((out, crossovers));
     }
-    if let Some(&bad) = args.grid.iter().find(|&&n| n == 0 || n % CHUNK != 0) {
-        return Err(Error::Spec(format!(
-            "--grid {bad}: sizes must be positive multiples of {CHUNK}"
-        )));
+    // Every size is checked before anything is measured.
+    for &n in &args.grid {
+        check_grid(n)?;
     }
     let mut sizes = args.grid.clone();
     sizes.sort_unstable();

@@ -8,7 +8,7 @@ use rayon::prelude::*;
 use super::{Complex, ComplexStats, Level};
 use crate::error::{Error, Result};
 use crate::trace::{with_width, Domain, Sample};
-use crate::triangulation::{KeyCodec, Simplex, MAX_DIM};
+use crate::triangulation::KeyCodec;
 
 /// The cells of one dimension before clipping: their facets (indices one level lower),
 /// whether they have both an inside and an outside crossing, and (when kept) their keys.
@@ -96,7 +96,7 @@ fn raw_levels<const W: usize>(
         let count: u64 = prev
             .par_iter()
             .map_init(
-                || scratch(d),
+                || prev_codec.scratch(),
                 |sigma, key| {
                     prev_codec.decode_into(key, sigma);
                     sigma.cofacet_count()
@@ -169,12 +169,6 @@ fn peak_bytes<const W: usize>(cofacets: u64) -> u64 {
     cofacets * (std::mem::size_of::<([u64; W], u32)>() + W * 8 + 5) as u64
 }
 
-/// A simplex of R^d to decode keys into (decoding into one per thread saves building a
-/// new one per key).
-fn scratch(d: usize) -> Simplex {
-    Simplex::vertex(&[0; MAX_DIM][..d]).expect("the codec's d is valid")
-}
-
 /// (cofacet key, index) for every cofacet of every simplex in `keys`.
 fn cofacet_pairs<const W: usize>(
     keys: &[[u64; W]],
@@ -185,12 +179,11 @@ fn cofacet_pairs<const W: usize>(
         return Err(Error::Trace("too many cells for 32-bit indices".into()));
     }
     const CHUNK: usize = 256;
-    let d = codec.ambient_dim();
     let parts = keys
         .par_chunks(CHUNK)
         .enumerate()
         .map(|(c, chunk)| -> Result<Vec<_>> {
-            let mut sigma = scratch(d);
+            let mut sigma = codec.scratch();
             let mut acc = Vec::with_capacity(chunk.len() * 4);
             let mut out = [0u64; W];
             for (j, key) in chunk.iter().enumerate() {
@@ -311,6 +304,7 @@ mod tests {
     use super::*;
     use crate::expr::{preset, Problem};
     use crate::trace::{trace, CpuOracle, TraceOptions};
+    use crate::triangulation::Simplex;
 
     /// The sphere of radius 1 in R^3 at a coarse edge (a few hundred crossed edges), traced
     /// inside `bbox`.

@@ -212,7 +212,7 @@ impl<'e, 'a, const W: usize> Namer<'e, 'a, W> {
         cands: usize,
         deferred: usize,
     ) -> Self {
-        let blank = Simplex::vertex(&[0; MAX_DIM][..engine.ctx.d]).expect("d was checked");
+        let blank = engine.ctx.codec.scratch();
         Namer {
             frontier,
             sigma: blank.clone(),

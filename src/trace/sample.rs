@@ -96,8 +96,7 @@ impl Sample {
             values: vec![0.0; (k + 1) * k],
             lambda: vec![0.0; k + 1],
             vkey: vec![0; self.codec.words()],
-            simplex: Simplex::vertex(&[0; crate::MAX_DIM][..self.ambient_dim()])
-                .expect("the codec's d is valid"),
+            simplex: self.codec.scratch(),
         }
     }
 

@@ -80,9 +80,15 @@ impl KeyCodec {
 
     /// Unpacks a key written by [`KeyCodec::encode`] (no heap allocation).
     pub fn decode(&self, key: &[u64]) -> Simplex {
-        let mut s = Simplex::vertex(&[0; MAX_DIM][..self.d]).expect("the codec's d is valid");
+        let mut s = self.scratch();
         self.decode_into(key, &mut s);
         s
+    }
+
+    /// A simplex of this codec's R^d to decode into with [`KeyCodec::decode_into`]: one per
+    /// thread, reused, saves building a new simplex per key.
+    pub fn scratch(&self) -> Simplex {
+        Simplex::vertex(&[0; MAX_DIM][..self.d]).expect("the codec's d is valid")
     }
 
     /// Unpacks a key into `out`, reusing its storage (no validation: keys come from
