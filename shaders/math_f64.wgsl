@@ -120,11 +120,11 @@ fn m64_atan(x: f64) -> f64 {
 }
 
 fn m64_asin(x: f64) -> f64 {
-    return m64_atan2(x, sqrt(1.0lf - x * x));
+    return m64_atan2(x, sqrt((1.0lf - x) * (1.0lf + x)));
 }
 
 fn m64_acos(x: f64) -> f64 {
-    return m64_atan2(sqrt(1.0lf - x * x), x);
+    return m64_atan2(sqrt((1.0lf - x) * (1.0lf + x)), x);
 }
 
 fn m64_sinh(x: f64) -> f64 {

@@ -686,3 +686,146 @@ fn one_gpu_oracle_serves_several_threads_at_once() {
     });
     assert!(oracle.stats().solved > 0);
 }
+
+#[test]
+fn the_certified_shader_bounds_the_cpu_values_and_matches_its_twin() {
+    use isomesh::cpu::eval_certified::eval_lattice_certified;
+    use isomesh::expr::{ImplicitFunction, PRESETS};
+    let Some(g) = gpu("the_certified_shader_bounds_the_cpu_values_and_matches_its_twin") else {
+        return;
+    };
+    for info in PRESETS {
+        let p = problem(info.name, &[]);
+        let (d, k) = (p.dim(), p.system.codim());
+        let tri = p.triangulation.build(d).unwrap();
+        let base = tri.locate(&p.seeds[0]).unwrap().base().to_vec();
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(d as u64 + 7);
+        let lattice: Vec<i32> = (0..2000 * d)
+            .map(|i| base[i % d] + rng.random_range(-12..=12))
+            .collect();
+        let n = lattice.len() / d;
+        // The CPU's values, as tracing computes them.
+        let mut cpu = vec![0.0; n * k];
+        CpuOracle::new(&p.system)
+            .eval_vertices(&tri, &lattice, &mut cpu)
+            .unwrap();
+        let (a, b) = tri.affine_map();
+        for prec in precisions(&g) {
+            let o = GpuOracle::new(g.clone(), &p.system, prec).unwrap();
+            let acc = o.precision().accuracy();
+            let got = o.certified_stage(&tri, &lattice).unwrap();
+            assert_eq!(got.len(), 2 * n * k);
+            let twin = match o.precision() {
+                Precision::F64 => {
+                    eval_lattice_certified::<f64>(p.system.values(), &acc, &a, &b, &lattice)
+                }
+                Precision::F32 => {
+                    eval_lattice_certified::<f32>(p.system.values(), &acc, &a, &b, &lattice)
+                }
+            };
+            let mut known = 0;
+            for (i, (pair, c)) in got.chunks_exact(2).zip(&cpu).enumerate() {
+                let (v, e) = (pair[0], pair[1]);
+                let [tv, te] = twin[i];
+                let usable = |v: f64, e: f64| e < acc.big && v.abs() < acc.big;
+                if !usable(v, e) {
+                    continue;
+                }
+                known += 1;
+                assert!(
+                    (c - v).abs() <= e,
+                    "{} {:?}: the CPU's {c} is not within {e:e} of the device's {v}",
+                    info.name,
+                    o.precision()
+                );
+                // Twin and shader compute the same rules: equal values up to the device's
+                // functions, bounds of the same size.
+                assert!(usable(tv, te), "{}: the twin has no bound", info.name);
+                assert!(
+                    (tv - v).abs() <= e + te
+                        && e <= 2.0 * te + acc.tiny
+                        && te <= 2.0 * e + acc.tiny,
+                    "{} {:?}: device ({v}, {e:e}) against twin ({tv}, {te:e})",
+                    info.name,
+                    o.precision()
+                );
+            }
+            assert!(
+                known as f64 >= 0.95 * (n * k) as f64,
+                "{} {:?}: {known} of {} values have a bound",
+                info.name,
+                o.precision(),
+                n * k
+            );
+        }
+    }
+}
+
+/// Each function of `shaders/math_f64.wgsl` on lavapipe against Rust's f64 library over its
+/// useful range: the primitives the certified evaluation builds on (exp, ln, sin, cos,
+/// atan2) within the error `Accuracy::f64` claims for them (Rust's own error, under an ulp,
+/// allowed on top), the others within 8 ulps.
+#[test]
+fn math_f64_functions_meet_their_claimed_accuracy() {
+    use isomesh::triangulation::{Triangulation, TriangulationKind};
+    let Some(g) = gpu("math_f64_functions_meet_their_claimed_accuracy") else {
+        return;
+    };
+    if !g.adapter.shader_f64 {
+        eprintln!("SKIPPED math_f64_functions_meet_their_claimed_accuracy: no SHADER_F64");
+        return;
+    }
+    let acc = Precision::F64.accuracy();
+    let ulp = |y: f64| (f64::from_bits(y.abs().to_bits() + 1) - y.abs()).max(f64::MIN_POSITIVE);
+    type Claim = fn(&isomesh::expr::certified::Accuracy, f64, f64) -> f64;
+    type Case = (&'static str, fn(f64) -> f64, [f64; 2], Option<Claim>);
+    #[rustfmt::skip]
+    let fns: [Case; 14] = [
+        ("exp(x)", f64::exp, [-700.0, 700.0], Some(|a, x, y| (a.exp0 + a.exp1 * x.abs()) * y.abs())),
+        ("ln(x)", f64::ln, [1e-30, 1e30], Some(|a, _, y| a.ln_rel * y.abs() + a.ln_abs)),
+        ("ln(x)", f64::ln, [0.5, 2.0], Some(|a, _, y| a.ln_rel * y.abs() + a.ln_abs)),
+        ("sin(x)", f64::sin, [-1e6, 1e6], Some(|a, x, _| a.trig_abs + a.trig_rel * x.abs())),
+        ("cos(x)", f64::cos, [-1e3, 1e3], Some(|a, x, _| a.trig_abs + a.trig_rel * x.abs())),
+        ("atan(x)", f64::atan, [-1e6, 1e6], Some(|a, _, y| a.atan_rel * y.abs() + a.atan_abs)),
+        ("atan(x)", f64::atan, [-2.0, 2.0], Some(|a, _, y| a.atan_rel * y.abs() + a.atan_abs)),
+        ("tan(x)", f64::tan, [-1.5, 1.5], None),
+        ("asin(x)", f64::asin, [-0.999, 0.999], None),
+        ("acos(x)", f64::acos, [-0.999, 0.999], None),
+        ("sinh(x)", f64::sinh, [-700.0, 700.0], None),
+        ("cosh(x)", f64::cosh, [-700.0, 700.0], None),
+        ("tanh(x)", f64::tanh, [-30.0, 30.0], None),
+        ("sqrt(x)", f64::sqrt, [0.0, 1e10], None),
+    ];
+    let n = 20_000;
+    for (text, reference, [lo, hi], claim) in fns {
+        // In R^2 (a system needs fewer equations than variables), along the x1 axis.
+        let text = text.replace("(x)", "(x1)");
+        let system = isomesh::expr::EquationSystem::parse_simple(2, &[&text]).unwrap();
+        let step = (hi - lo) / n as f64;
+        let tri = Triangulation::builder(2, TriangulationKind::Freudenthal)
+            .edge(step * 2f64.sqrt())
+            .offset(vec![lo, 0.0])
+            .build()
+            .unwrap();
+        let lattice: Vec<i32> = (0..=n).flat_map(|i| [i, 0]).collect();
+        let o = GpuOracle::new(g.clone(), &system, Some(Precision::F64)).unwrap();
+        let got = o.eval_stage(&tri, &lattice).unwrap();
+        let mut worst = 0.0f64;
+        for (u, dev) in lattice.chunks_exact(2).zip(&got) {
+            let mut x = [0.0; 2];
+            tri.vertex_coords(u, &mut x);
+            // The device maps u to x itself: compare at the device's x (the same bits here).
+            let y = reference(x[0]);
+            let err = (dev - y).abs();
+            match claim {
+                Some(c) => assert!(
+                    err <= c(&acc, x[0], y) + ulp(y),
+                    "{text} at {}: device {dev}, Rust {y}: error {err:e} over the claim",
+                    x[0]
+                ),
+                None => worst = worst.max(err / ulp(y)),
+            }
+        }
+        assert!(worst <= 8.0, "{text} on [{lo}, {hi}]: {worst} ulps");
+    }
+}

@@ -298,6 +298,34 @@ fn eval_table(args: &BenchArgs, gpu: Option<&Gpu>, precisions: &[Precision]) -> 
                 json!({"preset": name, "evaluator": name_p, "vertices_per_s": rate,
                 "largest_relative_difference": worst}),
             );
+            // With bounds: the share of values whose bound is usable, and the CPU's value
+            // must lie within every such bound.
+            let (s, pairs) = timed(args.repeats, || o.certified_stage(&tri, &lattice))?;
+            let acc = prec.accuracy();
+            let mut known = 0usize;
+            for (pair, c) in pairs.chunks_exact(2).zip(&cpu_values) {
+                if pair[1] < acc.big && pair[0].abs() < acc.big {
+                    known += 1;
+                    if (c - pair[0]).abs() > pair[1] {
+                        return Err(Error::Gpu(format!(
+                            "{name}: the CPU's {c} lies outside the certified ({}, {})",
+                            pair[0], pair[1]
+                        )));
+                    }
+                }
+            }
+            let share = known as f64 / cpu_values.len().max(1) as f64;
+            let rate = args.count as f64 / s;
+            let name_c = format!("gpu {} certified", prec.ty());
+            say!(
+                "| {name} | {d} | {k} | {name_c} | {rate:.3e} | {:.2} | within bounds ({:.1}% certified) |",
+                rate / cpu_rate,
+                100.0 * share
+            );
+            rows.push(
+                json!({"preset": name, "evaluator": name_c, "vertices_per_s": rate,
+                "certified_share": share}),
+            );
         }
     }
     Ok(rows)

@@ -26,4 +26,5 @@ mod solve_adversarial;
 #[doc(hidden)]
 pub use crate::expr::program;
 
+pub mod eval_certified;
 pub mod eval_vertices;

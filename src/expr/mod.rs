@@ -3,6 +3,7 @@
 //! (the GPU module's `wgsl`); spec files and presets are written in it.
 
 pub mod ast;
+pub mod certified;
 pub mod parser;
 pub mod presets;
 pub mod program;

@@ -16,7 +16,10 @@
 //! the device rounds division and does not contract (lavapipe: bit-identical); elsewhere
 //! points may differ by a few ulps, never the decisions. The vertex shader
 //! ([`GpuOracle::eval_stage`]) matches its CPU twin only to a few ulps, not bit for bit, so
-//! tracing does not take its values.
+//! tracing does not take its values. The certified vertex shader
+//! ([`GpuOracle::certified_stage`]) returns each value with a bound on its distance to the
+//! CPU's ([`crate::expr::certified`]): the building block for deciding on the device only
+//! what those bounds make certain.
 
 use std::ops::Range;
 use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering};
@@ -33,6 +36,7 @@ use crate::trace::{CpuOracle, Oracle, ScanGrid};
 use crate::triangulation::Triangulation;
 
 mod device;
+mod eval_certified;
 mod eval_vertices;
 mod scan;
 mod solve;
@@ -74,6 +78,8 @@ pub struct GpuOracle<'f> {
     eval: OnceLock<wgpu::ComputePipeline>,
     /// The scan shader, built on first use.
     scan: OnceLock<wgpu::ComputePipeline>,
+    /// The certified vertex shader, built on first use.
+    certified: OnceLock<wgpu::ComputePipeline>,
     /// Scan candidates per 2^16 cubes in the last dispatch, to size the next one's output.
     scan_density: AtomicU64,
     /// Most bytes per storage binding ([`GpuOracle::limit_binding`]).
@@ -122,6 +128,7 @@ impl<'f> GpuOracle<'f> {
             solve,
             eval: OnceLock::new(),
             scan: OnceLock::new(),
+            certified: OnceLock::new(),
             scan_density: AtomicU64::new(1 << 12),
             binding_limit: AtomicU64::new(1 << 30),
             level_slice: AtomicUsize::new(0),

@@ -5,6 +5,7 @@ use std::fmt::Write;
 
 use crate::error::{Error, Result};
 use crate::expr::ast::{Op1, Op2};
+use crate::expr::certified::{lattice_factor, Accuracy, Rules};
 use crate::expr::program::{Node, Program};
 
 /// The batch-evaluation compute shader; the emitted prelude supplies `real`, `DIM`, `OUTS`
@@ -12,6 +13,10 @@ use crate::expr::program::{Node, Program};
 pub const EVAL_VERTICES_WGSL: &str = include_str!("../../shaders/eval_vertices.wgsl");
 /// f64 elementary functions (SPIR-V has no f64 exp, log or trigonometry).
 pub const MATH_F64_WGSL: &str = include_str!("../../shaders/math_f64.wgsl");
+/// The rules of certified evaluation (twin of [`Rules`]).
+pub const CERTIFIED_WGSL: &str = include_str!("../../shaders/certified.wgsl");
+/// The certified vertex-evaluation compute shader.
+pub const EVAL_CERTIFIED_WGSL: &str = include_str!("../../shaders/eval_certified.wgsl");
 
 /// Floating-point width of emitted code.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -23,6 +28,14 @@ pub enum Precision {
 }
 
 impl Precision {
+    /// The accuracy certified evaluation assumes of a device computing at this precision.
+    pub fn accuracy(self) -> Accuracy {
+        match self {
+            Precision::F32 => Accuracy::f32(),
+            Precision::F64 => Accuracy::f64(),
+        }
+    }
+
     /// The WGSL scalar type.
     pub fn ty(self) -> &'static str {
         match self {
@@ -167,6 +180,182 @@ pub fn eval_shader(prog: &Program, p: Precision) -> Result<String> {
     }
     src.push_str(&emit_function(prog, "isomesh_f", p)?);
     src.push_str(EVAL_VERTICES_WGSL);
+    validate(&src, p)?;
+    Ok(src)
+}
+
+/// The device primitives the certified rules build on: `shaders/math_f64.wgsl` in f64; in
+/// f32 WGSL's built-ins, sin and cos after a reduction to [-pi, pi] (where WGSL bounds their
+/// error).
+fn certified_primitives(p: Precision) -> String {
+    match p {
+        Precision::F64 => "fn cb_dev_exp(x: f64) -> f64 { return m64_exp(x); }
+fn cb_dev_ln(x: f64) -> f64 { return m64_ln(x); }
+fn cb_dev_sin(x: f64) -> f64 { return m64_sin(x); }
+fn cb_dev_cos(x: f64) -> f64 { return m64_cos(x); }
+fn cb_dev_atan2(y: f64, x: f64) -> f64 { return m64_atan2(y, x); }
+"
+        .into(),
+        Precision::F32 => {
+            let lo = (std::f64::consts::TAU - 6.28125) as f32;
+            format!(
+                "// x - 2 pi n: n * 6.28125 is exact for |n| < 2^15, and so is the difference.
+fn cb_reduce(x: f32) -> f32 {{
+    let n = round(x * 0.15915494f);
+    let r = (x - n * 6.28125f) - n * {lo:?}f;
+    return clamp(r, -3.1415925f, 3.1415925f);
+}}
+fn cb_dev_exp(x: f32) -> f32 {{ return exp(x); }}
+fn cb_dev_ln(x: f32) -> f32 {{ return log(x); }}
+fn cb_dev_sin(x: f32) -> f32 {{ return sin(cb_reduce(x)); }}
+fn cb_dev_cos(x: f32) -> f32 {{ return cos(cb_reduce(x)); }}
+fn cb_dev_atan2(y: f32, x: f32) -> f32 {{ return atan2(y, x); }}
+"
+            )
+        }
+    }
+}
+
+/// The CB_* constants of `shaders/certified.wgsl`, from [`Accuracy`].
+fn certified_constants(p: Precision, acc: &Accuracy) -> Result<String> {
+    let mut s = String::new();
+    let consts = [
+        ("CB_UNIT", acc.unit),
+        ("CB_CPU", acc.cpu),
+        ("CB_CPU_FN", acc.cpu_fn),
+        ("CB_TINY", acc.tiny),
+        ("CB_GROW", acc.grow),
+        ("CB_BIG", acc.big),
+        ("CB_DIV", acc.div),
+        ("CB_SQRT", acc.sqrt),
+        ("CB_EXP0", acc.exp0),
+        ("CB_EXP1", acc.exp1),
+        ("CB_LN_REL", acc.ln_rel),
+        ("CB_LN_ABS", acc.ln_abs),
+        ("CB_LN_MIN", acc.ln_range[0]),
+        ("CB_LN_MAX", acc.ln_range[1]),
+        ("CB_TRIG_ABS", acc.trig_abs),
+        ("CB_TRIG_REL", acc.trig_rel),
+        ("CB_TRIG_MAX", acc.trig_max),
+        ("CB_ATAN_REL", acc.atan_rel),
+        ("CB_ATAN_ABS", acc.atan_abs),
+    ];
+    for (name, v) in consts {
+        let _ = writeln!(s, "const {name}: real = {};", p.literal(v)?);
+    }
+    Ok(s)
+}
+
+/// `fn NAME(x: array<Cv, D>) -> array<Cv, K>`: the program's certified outputs, one `let`
+/// per DAG node in the CPU's order, each a rule of `shaders/certified.wgsl` (the twin of
+/// [`crate::expr::certified::certified_eval`]).
+pub fn emit_certified_function(prog: &Program, name: &str, p: Precision) -> Result<String> {
+    let (d, k) = (prog.dim(), prog.outputs().max(1));
+    let mut s = String::new();
+    let _ = writeln!(s, "fn {name}(x: array<Cv, {d}>) -> array<Cv, {k}> {{");
+    let c = |i: u32| format!("c{i}");
+    for (i, node) in prog.nodes().iter().enumerate() {
+        let rhs = match *node {
+            Node::Var(j) => format!("x[{j}]"),
+            Node::Const(v) => {
+                let (cv, ce) = match p {
+                    Precision::F32 => {
+                        let r = Rules::<f32>::new(&p.accuracy()).constant(v);
+                        (r.v as f64, r.e as f64)
+                    }
+                    Precision::F64 => {
+                        let r = Rules::<f64>::new(&p.accuracy()).constant(v);
+                        (r.v, r.e)
+                    }
+                };
+                format!("Cv({}, {})", p.literal(cv)?, p.literal(ce)?)
+            }
+            Node::Un(op, a) => match op {
+                Op1::Sqrt => format!("cb_sqrt({}, true)", c(a)),
+                Op1::Neg => format!("cb_neg({})", c(a)),
+                other => format!("cb_{}({})", other.name(), c(a)),
+            },
+            Node::Bin(op, a, b) => match op {
+                Op2::Add => format!("cb_add({}, {}, true)", c(a), c(b)),
+                Op2::Sub => format!("cb_sub({}, {}, true)", c(a), c(b)),
+                Op2::Mul => format!("cb_mul({}, {}, true)", c(a), c(b)),
+                Op2::Div => format!("cb_div({}, {}, true)", c(a), c(b)),
+                Op2::Min => format!("cb_min({}, {})", c(a), c(b)),
+                Op2::Max => format!("cb_max({}, {})", c(a), c(b)),
+                Op2::Pow => format!("cb_pow({}, {})", c(a), c(b)),
+                Op2::Atan2 => format!("cb_atan2({}, {})", c(a), c(b)),
+            },
+            Node::PowI(a, n) => {
+                // Rules::powi: the CPU's squaring sequence.
+                let mut e = n.unsigned_abs();
+                let mut base = c(a);
+                let mut acc: Option<String> = None;
+                let mut t = 0;
+                while e > 0 {
+                    if e & 1 == 1 {
+                        acc = Some(match acc {
+                            None => base.clone(),
+                            Some(prev) => {
+                                let name = format!("q{i}_{t}");
+                                t += 1;
+                                let _ =
+                                    writeln!(s, "    let {name} = cb_mul({prev}, {base}, true);");
+                                name
+                            }
+                        });
+                    }
+                    e >>= 1;
+                    if e > 0 {
+                        let name = format!("q{i}_{t}");
+                        t += 1;
+                        let _ = writeln!(s, "    let {name} = cb_mul({base}, {base}, true);");
+                        base = name;
+                    }
+                }
+                let acc = acc.unwrap_or_else(|| "cb_exact(real(1.0))".into());
+                if n < 0 {
+                    format!("cb_div(cb_exact(real(1.0)), {acc}, true)")
+                } else {
+                    acc
+                }
+            }
+        };
+        let _ = writeln!(s, "    let c{i}: Cv = {rhs};");
+    }
+    let outs: Vec<String> = prog.output_nodes().iter().map(|&o| c(o)).collect();
+    let outs = if outs.is_empty() {
+        vec!["cb_exact(real(0.0))".into()]
+    } else {
+        outs
+    };
+    let _ = writeln!(s, "    return array<Cv, {k}>({});\n}}", outs.join(", "));
+    Ok(s)
+}
+
+/// The certified vertex-evaluation shader for `prog` (`shaders/eval_certified.wgsl`), validated.
+pub fn certified_shader(prog: &Program, p: Precision) -> Result<String> {
+    let acc = p.accuracy();
+    let d = prog.dim();
+    let mut src = String::new();
+    let _ = writeln!(
+        src,
+        "alias real = {ty};\nconst DIM: u32 = {d}u;\nconst OUTS: u32 = {k}u;",
+        ty = p.ty(),
+        k = prog.outputs().max(1)
+    );
+    src.push_str(&certified_constants(p, &acc)?);
+    let _ = writeln!(
+        src,
+        "const LATTICE_FACTOR: real = {};",
+        p.literal(lattice_factor(&acc, d))?
+    );
+    if p == Precision::F64 {
+        src.push_str(MATH_F64_WGSL);
+    }
+    src.push_str(&certified_primitives(p));
+    src.push_str(CERTIFIED_WGSL);
+    src.push_str(&emit_certified_function(prog, "isomesh_fc", p)?);
+    src.push_str(EVAL_CERTIFIED_WGSL);
     validate(&src, p)?;
     Ok(src)
 }

@@ -23,8 +23,9 @@ pub(super) enum Stage {
     Solve,
     Scan,
     Eval,
+    Certified,
 }
-pub(super) const STAGES: usize = 3;
+pub(super) const STAGES: usize = 4;
 
 impl GpuOracle<'_> {
     /// The bytes one storage binding may hold.
