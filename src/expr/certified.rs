@@ -108,8 +108,8 @@ impl Accuracy {
     }
 
     /// A device computing in f64 with `shaders/math_f64.wgsl`, at the accuracy measured for
-    /// those functions (tests/certified.rs measures them and checks these claims hold with a
-    /// margin), given IEEE f64 + - * and f32 first guesses within 2^-20.
+    /// those functions on lavapipe (tests/gpu.rs measures them and checks that these claims
+    /// hold), given IEEE f64 + - * and f32 first guesses within 2^-20.
     pub fn f64() -> Accuracy {
         let u = U64;
         Accuracy {
