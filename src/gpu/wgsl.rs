@@ -95,6 +95,41 @@ fn call2(p: Precision, op: Op2, a: &str, b: &str) -> String {
     }
 }
 
+/// Emits the `let`s of a^|n| by the CPU's squaring sequence ([`crate::expr::ast::powi`]: the
+/// accumulator takes the first set bit's power, then multiplies), `mul` writing one product;
+/// the name of the result, or None for n = 0. Temporaries are named `p{node}_{t}`.
+fn emit_powi(
+    s: &mut String,
+    node: usize,
+    a: String,
+    n: i32,
+    mul: impl Fn(&str, &str) -> String,
+) -> Option<String> {
+    let mut e = n.unsigned_abs();
+    let mut base = a;
+    let mut acc: Option<String> = None;
+    let mut t = 0;
+    let mut temp = |s: &mut String, rhs: String| {
+        let name = format!("p{node}_{t}");
+        t += 1;
+        let _ = writeln!(s, "    let {name} = {rhs};");
+        name
+    };
+    while e > 0 {
+        if e & 1 == 1 {
+            acc = Some(match acc {
+                None => base.clone(),
+                Some(prev) => temp(s, mul(&prev, &base)),
+            });
+        }
+        e >>= 1;
+        if e > 0 {
+            base = temp(s, mul(&base, &base));
+        }
+    }
+    acc
+}
+
 /// `fn NAME(x: array<real, D>) -> array<real, K>` computing the program's outputs; one `let`
 /// per DAG node, in the CPU's order; integer powers by the CPU's squaring sequence.
 pub fn emit_function(prog: &Program, name: &str, p: Precision) -> Result<String> {
@@ -114,32 +149,8 @@ pub fn emit_function(prog: &Program, name: &str, p: Precision) -> Result<String>
             Node::Un(op, a) => call1(p, op, &v(a)),
             Node::Bin(op, a, b) => call2(p, op, &v(a), &v(b)),
             Node::PowI(a, n) => {
-                // Mirror of ast::powi: acc takes the first set bit's power, then multiplies.
-                let mut e = n.unsigned_abs();
-                let mut base = v(a);
-                let mut acc: Option<String> = None;
-                let mut t = 0;
-                while e > 0 {
-                    if e & 1 == 1 {
-                        acc = Some(match acc {
-                            None => base.clone(),
-                            Some(prev) => {
-                                let name = format!("p{i}_{t}");
-                                t += 1;
-                                let _ = writeln!(s, "    let {name} = {prev} * {base};");
-                                name
-                            }
-                        });
-                    }
-                    e >>= 1;
-                    if e > 0 {
-                        let name = format!("p{i}_{t}");
-                        t += 1;
-                        let _ = writeln!(s, "    let {name} = {base} * {base};");
-                        base = name;
-                    }
-                }
-                let acc = acc.unwrap_or_else(|| p.literal(1.0).unwrap_or_default());
+                let acc = emit_powi(&mut s, i, v(a), n, |x, y| format!("{x} * {y}"))
+                    .unwrap_or_else(|| p.literal(1.0).unwrap_or_default());
                 if n < 0 {
                     format!("{} / {acc}", p.literal(1.0)?)
                 } else {
@@ -287,32 +298,8 @@ pub fn emit_certified_function(prog: &Program, name: &str, p: Precision) -> Resu
             },
             Node::PowI(a, n) => {
                 // Rules::powi: the CPU's squaring sequence.
-                let mut e = n.unsigned_abs();
-                let mut base = c(a);
-                let mut acc: Option<String> = None;
-                let mut t = 0;
-                while e > 0 {
-                    if e & 1 == 1 {
-                        acc = Some(match acc {
-                            None => base.clone(),
-                            Some(prev) => {
-                                let name = format!("q{i}_{t}");
-                                t += 1;
-                                let _ =
-                                    writeln!(s, "    let {name} = cb_mul({prev}, {base}, true);");
-                                name
-                            }
-                        });
-                    }
-                    e >>= 1;
-                    if e > 0 {
-                        let name = format!("q{i}_{t}");
-                        t += 1;
-                        let _ = writeln!(s, "    let {name} = cb_mul({base}, {base}, true);");
-                        base = name;
-                    }
-                }
-                let acc = acc.unwrap_or_else(|| "cb_exact(real(1.0))".into());
+                let acc = emit_powi(&mut s, i, c(a), n, |x, y| format!("cb_mul({x}, {y}, true)"))
+                    .unwrap_or_else(|| "cb_exact(real(1.0))".into());
                 if n < 0 {
                     format!("cb_div(cb_exact(real(1.0)), {acc}, true)")
                 } else {

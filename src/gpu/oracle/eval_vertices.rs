@@ -4,13 +4,22 @@
 use super::device::{pipeline, Stage};
 use super::GpuOracle;
 use crate::error::{Error, Result};
+use std::sync::OnceLock;
+
+use crate::expr::program::Program;
 use crate::gpu::wgsl::{eval_shader, Precision};
 use crate::triangulation::Triangulation;
 
 impl GpuOracle<'_> {
-    /// The vertex shader's pipeline, built the first time it is asked for.
-    fn eval_pipeline(&self) -> Result<&wgpu::ComputePipeline> {
-        if let Some(p) = self.eval.get() {
+    /// A pipeline of a shader written for f (`shader` emits it from f's program), built in
+    /// `cell` the first time it is asked for.
+    pub(super) fn f_pipeline<'a>(
+        &self,
+        cell: &'a OnceLock<wgpu::ComputePipeline>,
+        shader: fn(&Program, Precision) -> Result<String>,
+        label: &str,
+    ) -> Result<&'a wgpu::ComputePipeline> {
+        if let Some(p) = cell.get() {
             return Ok(p);
         }
         let Some(system) = self.f.system() else {
@@ -18,12 +27,8 @@ impl GpuOracle<'_> {
                 "the GPU evaluates only functions written in the equation language".into(),
             ));
         };
-        let built = pipeline(
-            &self.gpu,
-            &eval_shader(system.values(), self.precision)?,
-            "eval_vertices",
-        )?;
-        Ok(self.eval.get_or_init(|| built))
+        let built = pipeline(&self.gpu, &shader(system.values(), self.precision)?, label)?;
+        Ok(cell.get_or_init(|| built))
     }
 
     #[doc(hidden)] // a stage alone, for tests and benchmarks
@@ -33,8 +38,22 @@ impl GpuOracle<'_> {
     /// Tracing does not use it (see the module documentation): it is the building block of
     /// GPU-side scans, and measured by `isomesh bench`.
     pub fn eval_stage(&self, tri: &Triangulation, lattice: &[i32]) -> Result<Vec<f64>> {
-        let eval = self.eval_pipeline()?;
-        let (d, k) = (tri.dim(), self.k);
+        let eval = self.f_pipeline(&self.eval, eval_shader, "eval_vertices")?;
+        self.lattice_stage(Stage::Eval, eval, tri, lattice, self.k)
+    }
+
+    /// Runs a shader over lattice vertices (`shaders/eval_vertices.wgsl` and
+    /// `shaders/eval_certified.wgsl` share its input: A, b, then the rows of `lattice`)
+    /// with `outs` reals out per vertex, in chunks that fit one binding.
+    pub(super) fn lattice_stage(
+        &self,
+        stage: Stage,
+        pipe: &wgpu::ComputePipeline,
+        tri: &Triangulation,
+        lattice: &[i32],
+        outs: usize,
+    ) -> Result<Vec<f64>> {
+        let d = tri.dim();
         if self.f.ambient_dim() != d {
             return Err(Error::DimensionMismatch(format!(
                 "the triangulation is in R^{d}, f in R^{}",
@@ -54,8 +73,8 @@ impl GpuOracle<'_> {
         let (a, b) = tri.affine_map();
         let head: Vec<f64> = a.into_iter().chain(b).collect();
         let rs = self.real_size();
-        let chunk = self.chunk(rs * d.max(k));
-        let mut values = Vec::with_capacity(lattice.len() / d.max(1) * k);
+        let chunk = self.chunk(rs * d.max(outs));
+        let mut values = Vec::with_capacity(lattice.len() / d.max(1) * outs);
         for part in lattice.chunks(chunk * d) {
             let count = part.len() / d;
             let input: Vec<f64> = head
@@ -64,11 +83,11 @@ impl GpuOracle<'_> {
                 .chain(part.iter().map(|&u| u as f64))
                 .collect();
             let pending = self.submit(
-                Stage::Eval,
-                eval,
+                stage,
+                pipe,
                 &self.encode_reals(&input),
                 count,
-                &[count * k * rs],
+                &[count * outs * rs],
                 false,
             )?;
             values.extend(self.decode_reals(&self.finish(pending)?[0]));
