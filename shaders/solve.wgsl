@@ -1,9 +1,10 @@
 // The intersection test's fast path, the twin of `Decider::fast_path` in src/cpu/solve.rs:
 // Gauss-Jordan inversion of the labelling matrix L = [1 .. 1; F_0 .. F_k] with partial
-// pivoting, lambda = first column of L^-1, and a first-order error bound per lambda_i.
-// The host prepends: `alias real`, `const N: u32` (k + 1), `const NN: u32` (N * N),
-// `const EPS: real` (unit roundoff of real), `const BOUND: real` (safety factor) and
-// `const BIG: real` (largest finite real) and `const MAX_RELATIVE_BOUND: real`.
+// pivoting (shaders/gauss_jordan.wgsl), lambda = first column of L^-1, and a first-order
+// error bound per lambda_i. The host prepends: `alias real`, `const N: u32` (k + 1),
+// `const NN: u32` (N * N), `const EPS: real` (machine epsilon of real), `const BOUND: real`
+// (safety factor), `const BIG: real` (largest finite real), `const MAX_RELATIVE_BOUND: real`
+// and gauss_jordan.wgsl.
 // rows: per simplex, rows 1..N-1 of L (N values each), already scaled by powers of two.
 // lambda: N values per simplex. flags: 0 crossed, 1 outside, 2 uncertain (decide elsewhere).
 
@@ -33,7 +34,6 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     var a: array<real, NN>;
     var inv: array<real, NN>;
     let base = s * (N - 1u) * N;
-    var scale = real(1);
     for (var j = 0u; j < N; j++) {
         l0[j] = real(1);
     }
@@ -41,60 +41,12 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         for (var j = 0u; j < N; j++) {
             let v = rows[base + (r - 1u) * N + j];
             l0[r * N + j] = v;
-            scale = max(scale, abs(v));
         }
     }
-    for (var t = 0u; t < NN; t++) {
-        a[t] = l0[t];
-        inv[t] = real(0);
-    }
-    for (var i = 0u; i < N; i++) {
-        inv[i * N + i] = real(1);
-    }
-    let tiny = scale * EPS * real(N);
-    for (var c = 0u; c < N; c++) {
-        var p = c;
-        for (var r = c + 1u; r < N; r++) {
-            if (abs(a[r * N + c]) > abs(a[p * N + c])) {
-                p = r;
-            }
-        }
-        if (abs(a[p * N + c]) <= tiny) {
-            flags[s] = UNCERTAIN;
-            return;
-        }
-        if (p != c) {
-            for (var t = 0u; t < N; t++) {
-                let x = a[p * N + t];
-                a[p * N + t] = a[c * N + t];
-                a[c * N + t] = x;
-                let y = inv[p * N + t];
-                inv[p * N + t] = inv[c * N + t];
-                inv[c * N + t] = y;
-            }
-        }
-        let r_piv = real(1) / a[c * N + c];
-        for (var t = c; t < N; t++) {
-            a[c * N + t] = a[c * N + t] * r_piv;
-        }
-        for (var t = 0u; t < N; t++) {
-            inv[c * N + t] = inv[c * N + t] * r_piv;
-        }
-        for (var r = 0u; r < N; r++) {
-            if (r == c) {
-                continue;
-            }
-            let f = a[r * N + c];
-            if (f == real(0)) {
-                continue;
-            }
-            for (var t = c; t < N; t++) {
-                a[r * N + t] = a[r * N + t] - f * a[c * N + t];
-            }
-            for (var t = 0u; t < N; t++) {
-                inv[r * N + t] = inv[r * N + t] - f * inv[c * N + t];
-            }
-        }
+    a = l0;
+    if (!gauss_jordan(&a, &inv)) {
+        flags[s] = UNCERTAIN;
+        return;
     }
     // Row sums of |L|, then Skeel's condition numbers c_i = (|L^-1| |L| 1)_i: the error of
     // lambda_i is bounded by unit * c_i * max|lambda|, while unit * c_i is small.

@@ -77,6 +77,8 @@ pub struct Mesher {
     backend: Backend,
     #[cfg(feature = "gpu")]
     precision: Option<crate::gpu::Precision>,
+    #[cfg(feature = "gpu")]
+    device_values: bool,
     threads: Option<usize>,
     max_memory: u64,
     cancel: Option<Arc<AtomicBool>>,
@@ -166,6 +168,8 @@ impl Mesher {
             backend: Backend::Cpu,
             #[cfg(feature = "gpu")]
             precision: None,
+            #[cfg(feature = "gpu")]
+            device_values: false,
             threads: None,
             max_memory: memory::default_limit(),
             cancel: None,
@@ -242,6 +246,16 @@ impl Mesher {
     #[cfg(feature = "gpu")]
     pub fn precision(mut self, precision: Option<crate::gpu::Precision>) -> Self {
         self.precision = precision;
+        self
+    }
+
+    /// GPU backend: the exhaustive scan evaluates f on the device with certified bounds and
+    /// the CPU only where the device cannot decide
+    /// ([`GpuOracle::set_device_values`](crate::gpu::GpuOracle::set_device_values)); the
+    /// result is the same. Off by default.
+    #[cfg(feature = "gpu")]
+    pub fn device_values(mut self, on: bool) -> Self {
+        self.device_values = on;
         self
     }
 
@@ -445,7 +459,9 @@ impl Mesher {
                 }
             }
         };
-        GpuOracle::new(gpu, f, self.precision).map(Some)
+        let o = GpuOracle::new(gpu, f, self.precision)?;
+        o.set_device_values(self.device_values);
+        Ok(Some(o))
     }
 }
 

@@ -130,6 +130,15 @@ pub struct Report {
     pub non_finite: u64,
     /// Lattice vertices where f was evaluated.
     pub vertices_evaluated: u64,
+    /// Of the lattice vertices, those where a device evaluated f with a bound.
+    pub device_vertex_evaluations: u64,
+    /// Lattice vertices where the CPU evaluated f (a scan with device values: only where
+    /// the device could not decide, or found a crossing whose point the CPU computes).
+    pub cpu_vertex_evaluations: u64,
+    /// Decisions a device took with a certificate and the CPU did not redo.
+    pub device_decisions: u64,
+    /// Decisions made or redone on the CPU.
+    pub cpu_decisions: u64,
     /// Projected box samples used as seeds.
     pub seed_points: u64,
     /// Crossings where f looks like it has a pole or a jump (see
@@ -275,6 +284,10 @@ impl Report {
             degenerate: st.degenerate,
             non_finite: st.non_finite,
             vertices_evaluated: st.vertices,
+            device_vertex_evaluations: st.device_vertex_evaluations,
+            cpu_vertex_evaluations: st.cpu_vertex_evaluations,
+            device_decisions: st.device_decisions,
+            cpu_decisions: st.cpu_decisions,
             seed_points: st.seed_points,
             suspect_crossings: run.suspect_crossings,
             singular_seeds: run.singular_seeds,

@@ -517,7 +517,7 @@ fn bench_compares_the_oracles_and_traces_and_plots() {
             "--repeats",
             "1",
             "--traces",
-            "quick",
+            "quick,scans",
             "--backend",
             backend,
             "--json",
@@ -571,6 +571,31 @@ fn bench_compares_the_oracles_and_traces_and_plots() {
         assert!(row["cpu_speedup"].as_f64().unwrap() > 0.0);
         if gpu {
             assert_eq!(row["same_sample"], true, "{row}");
+        }
+    }
+    let scans = b["scans"].as_array().unwrap();
+    assert_eq!(scans.len(), 3, "{scans:?}");
+    for row in scans {
+        assert!(row["simplices"].as_u64().unwrap() > 0, "{row}");
+        if gpu {
+            // With device values the device evaluated the grid, the CPU a small part of it.
+            assert_eq!(row["same_sample"], true, "{row}");
+            let (dev, cpu) = (
+                row["device_vertex_evaluations"].as_u64().unwrap(),
+                row["cpu_vertex_evaluations"].as_u64().unwrap(),
+            );
+            assert!(0 < cpu && cpu * 4 < dev, "{row}");
+            assert!(dev <= row["vertices"].as_u64().unwrap(), "{row}");
+            let decided =
+                row["device_decisions"].as_u64().unwrap() + row["cpu_decisions"].as_u64().unwrap();
+            assert!(decided >= row["simplices"].as_u64().unwrap(), "{row}");
+        }
+    }
+    for row in traces {
+        if gpu {
+            let decided =
+                row["device_decisions"].as_u64().unwrap() + row["cpu_decisions"].as_u64().unwrap();
+            assert!(decided > 0, "{row}");
         }
     }
     let png = std::fs::read(dir.join("b.png")).unwrap();

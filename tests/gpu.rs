@@ -8,7 +8,7 @@ use std::ops::Range;
 use std::sync::Mutex;
 
 use isomesh::cpu::solve::Status;
-use isomesh::expr::{preset, Problem};
+use isomesh::expr::{preset, Problem, Spec};
 use isomesh::gpu::{Gpu, GpuOracle, Precision};
 use isomesh::trace::scan::candidates::candidates;
 use isomesh::trace::scan::candidates::Candidates;
@@ -174,7 +174,7 @@ impl Oracle for Shadow<'_> {
         simplices: &[u32],
         status: &mut [Status],
         lambda: &mut [f64],
-    ) -> isomesh::Result<u64> {
+    ) -> isomesh::Result<isomesh::trace::Decisions> {
         let exact = self.dev.decide(values, simplices, status, lambda)?;
         let (m, n) = (status.len(), self.n);
         let (mut st, mut lam) = (vec![Status::Outside; m], vec![0.0; lambda.len()]);
@@ -827,5 +827,427 @@ fn math_f64_functions_meet_their_claimed_accuracy() {
             }
         }
         assert!(worst <= 8.0, "{text} on [{lo}, {hi}]: {worst} ulps");
+    }
+}
+
+/// The certified solve shader against its CPU twin
+/// ([`CertifiedSolver`](isomesh::cpu::certificate::CertifiedSolver)) on hard simplices with
+/// value bounds of every size, and both against the exact decision of the values (which lie
+/// within the bounds).
+#[test]
+fn the_certified_solve_shader_matches_its_cpu_twin() {
+    use isomesh::cpu::certificate::{pack_rows, CertifiedSolver, CROSSED, OUTSIDE, UNCERTAIN};
+    use isomesh::cpu::solve::exact_decision;
+    use isomesh::expr::certified::DeviceReal;
+    let Some(g) = gpu("the_certified_solve_shader_matches_its_cpu_twin") else {
+        return;
+    };
+    fn twin<R: DeviceReal>(k: usize, l: &[f64], e: &[f64]) -> (Vec<u32>, Vec<f64>) {
+        let (n, per) = (k + 1, k * (k + 1));
+        let mut s = CertifiedSolver::<R>::new(k);
+        let (mut lf, mut ef) = (vec![R::of(1.0); n * n], vec![R::of(0.0); n * n]);
+        let mut x = vec![R::of(0.0); n];
+        let (mut flags, mut lam) = (Vec::new(), Vec::new());
+        for (lr, er) in l.chunks(per).zip(e.chunks(per)) {
+            for i in 0..per {
+                lf[n + i] = R::of(lr[i]);
+                ef[n + i] = R::of(er[i]);
+            }
+            flags.push(s.solve(&lf, &ef, &mut x));
+            lam.extend(x.iter().map(|v| v.wide()));
+        }
+        (flags, lam)
+    }
+    for k in [1, 3, 5] {
+        let (n, per) = (k + 1, k * (k + 1));
+        let count = 20_000;
+        let (values, _) = hard_batch(k, count, 17 + k as u64);
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(k as u64);
+        // Bounds: none for a quarter, else 2^-r of the value, r in 8..=50.
+        let bounds: Vec<f64> = values
+            .iter()
+            .map(|v| match rng.random_range(0..4) {
+                0 => 0.0,
+                _ => v.abs() * (-(rng.random_range(8..=50) as f64)).exp2(),
+            })
+            .collect();
+        for prec in precisions(&g) {
+            let f = isomesh::expr::ClosureFunction::new(k + 1, k, |_, o| o.fill(0.0)).unwrap();
+            let o = GpuOracle::new(reopen(), &f, prec).unwrap();
+            let p = o.precision();
+            let (mut l, mut e) = (vec![0.0; count * per], vec![0.0; count * per]);
+            for i in 0..count {
+                let at = |j: usize, c: usize| i * per + j * k + c;
+                let (val, bnd) = (|j, c| values[at(j, c)], |j, c| bounds[at(j, c)]);
+                let (lo, eo) = (&mut l[i * per..][..per], &mut e[i * per..][..per]);
+                let ok = match p {
+                    Precision::F32 => pack_rows::<f32>(k, val, bnd, lo, eo),
+                    Precision::F64 => pack_rows::<f64>(k, val, bnd, lo, eo),
+                };
+                assert!(ok);
+            }
+            let (flags, lambda) = o.solve_certified_stage(&l, &e).unwrap();
+            let (tflags, tlambda) = match p {
+                Precision::F32 => twin::<f32>(k, &l, &e),
+                Precision::F64 => twin::<f64>(k, &l, &e),
+            };
+            let mut exact_l = vec![0.0; n];
+            let (mut differ, mut certified) = (0, 0);
+            for i in 0..count {
+                let (a, b) = (flags[i], tflags[i]);
+                differ += (a != b) as usize;
+                assert!(a <= UNCERTAIN, "{p:?}: flag {a}");
+                if a != UNCERTAIN {
+                    certified += 1;
+                    let want = exact_decision(&values[i * per..][..per], k, &mut exact_l);
+                    let ok = (a == CROSSED) == (want == Status::Crossed)
+                        && (a != OUTSIDE || want == Status::Outside);
+                    assert!(
+                        ok,
+                        "k = {k} {p:?}: device {a}, exact {want:?} (simplex {i})"
+                    );
+                }
+                assert!(
+                    !(a != UNCERTAIN && b != UNCERTAIN && a != b),
+                    "k = {k} {p:?}: device {a}, twin {b} (simplex {i})"
+                );
+            }
+            let bits = lambda
+                .iter()
+                .zip(&tlambda)
+                .filter(|(a, b)| a.to_bits() != b.to_bits())
+                .count();
+            eprintln!(
+                "k = {k} {p:?}: {certified} of {count} certified, {differ} verdicts and {bits} \
+                 entries of x differ from the twin"
+            );
+            assert!(
+                certified * 2 > count,
+                "k = {k} {p:?}: {certified} certified"
+            );
+            if p == Precision::F64 && bitwise_f64(&g) {
+                // lavapipe: the same operations rounded the same way.
+                assert_eq!(
+                    (differ, bits),
+                    (0, 0),
+                    "k = {k}: the twin is not the shader"
+                );
+            } else {
+                assert!(
+                    differ <= count / 1000,
+                    "k = {k} {p:?}: {differ} verdicts differ"
+                );
+            }
+        }
+    }
+}
+
+/// The scan cases of the device-values tests: every preset at two scales (a preset's own
+/// box where it has one, else a cube of the half-width given).
+fn device_value_cases() -> Vec<Scaled> {
+    vec![
+        ("circle", vec![("edge", 0.1)], 1.2),
+        ("circle", vec![("edge", 0.03)], 1.2),
+        ("sphere", vec![("edge", 0.2)], 1.2),
+        ("sphere", vec![("edge", 0.1)], 0.8),
+        ("torus", vec![("edge", 0.1)], 1.5),
+        ("torus", vec![("edge", 0.07)], 1.0),
+        ("chair", vec![("edge", 0.15)], 1.6),
+        ("chair", vec![("edge", 0.1)], 1.0),
+        ("flat-torus", vec![("edge", 0.3)], 1.1),
+        ("flat-torus", vec![("edge", 0.2)], 0.8),
+        (
+            "3-torus",
+            vec![("a", 0.5), ("b", 0.5), ("c", 0.5), ("edge", 1.2)],
+            1.1,
+        ),
+        (
+            "3-torus",
+            vec![("a", 0.5), ("b", 0.5), ("c", 0.5), ("edge", 0.9)],
+            0.7,
+        ),
+        ("complex-cosine", vec![("edge", 0.3)], 0.0),
+        ("complex-cosine", vec![("edge", 0.25)], 0.0),
+        ("bagel-klein", vec![("edge", 0.6)], 0.0),
+        ("bagel-klein", vec![("edge", 0.5)], 0.0),
+        ("cut-flat-torus", vec![("edge", 0.4)], 1.1),
+        ("cut-flat-torus", vec![("edge", 0.3)], 1.1),
+    ]
+}
+
+/// Problems whose zero set runs through lattice vertices (an unrotated Freudenthal-Kuhn
+/// lattice of spacing h with no offset), so that values at vertices are 0 or a rounding away
+/// from it, within the device's bounds of 0; boxes and boundaries cut M at lattice vertices.
+fn lattice_zero_cases() -> Vec<Problem> {
+    let spec = |d: usize, h: f64, eqs: &[&str], bnd: &[&str], half: f64| {
+        let matrix: Vec<Vec<f64>> = (0..d)
+            .map(|i| (0..d).map(|j| if i == j { h } else { 0.0 }).collect())
+            .collect();
+        let text = format!(
+            "ambient_dim = {d}\nequations = {eqs:?}\nboundary = {bnd:?}\nbox = {:?}\n\
+             [triangulation]\nkind = \"custom\"\nmatrix = {matrix:?}\n",
+            cube(d, half)
+        );
+        Spec::from_toml(&text)
+            .and_then(|s| s.resolve(&eqs.join(", ")))
+            .unwrap_or_else(|e| panic!("{text}: {e}"))
+    };
+    vec![
+        // (±0.6, ±0.8) and (±1, 0) are vertices on the circle, and the box touches it there.
+        spec(2, 0.1, &["x1^2 + x2^2 - 1"], &[], 1.0),
+        spec(2, 0.1, &["x1 - x2"], &[], 0.7),
+        spec(2, 0.1, &["0.3*x1 + 0.7*x2 - 0.1"], &["0.3 - x1"], 0.8),
+        spec(3, 0.1, &["x1 + x2 + x3 - 0.3"], &[], 0.5),
+        spec(3, 0.1, &["x1^2 + x2^2 + x3^2 - 0.25"], &["x3 - 0.3"], 0.6),
+        // A line along lattice edges: every simplex around it is degenerate.
+        spec(3, 0.1, &["x1 - 0.3", "x2 + 0.2"], &[], 0.5),
+        spec(
+            4,
+            0.2,
+            &["x1^2 + x2^2 - 1", "x3^2 + x4^2 - 1"],
+            &["0.6 - x1"],
+            1.0,
+        ),
+    ]
+}
+
+/// `got` is `want` exactly: the keys in the same order, the points bit for bit, the rim, the
+/// components and the complex's topology.
+fn assert_same_scan(p: &Problem, bbox: &[[f64; 2]], want: &Sample, got: &Sample, what: &str) {
+    assert_eq!(want.len(), got.len(), "{what}: |S|");
+    for i in 0..want.len() {
+        assert_eq!(want.key(i), got.key(i), "{what}: key {i}");
+    }
+    let bits = |v: Vec<f64>| v.into_iter().map(f64::to_bits).collect::<Vec<_>>();
+    assert!(
+        bits(want.points()) == bits(got.points()),
+        "{what}: the points differ"
+    );
+    assert_eq!(want.rim_len(), got.rim_len(), "{what}: rim");
+    for r in 0..want.rim_len() {
+        assert_eq!(want.rim_key(r), got.rim_key(r), "{what}: rim {r}");
+        assert!(
+            bits(want.rim_point(r).to_vec()) == bits(got.rim_point(r).to_vec()),
+            "{what}: rim point {r}"
+        );
+    }
+    assert_eq!(want.stats.components, got.stats.components, "{what}");
+    if want.ambient_dim() - want.codim() <= 3 && !want.is_empty() {
+        use isomesh::complex::Complex;
+        let t = |s: &Sample| Complex::build(s, &p.system, Some(bbox)).unwrap().topology();
+        let (a, b) = (t(want), t(got));
+        assert_eq!(a.cells, b.cells, "{what}: cells");
+        assert_eq!(a.euler_characteristic, b.euler_characteristic, "{what}");
+        assert_eq!(a.betti_mod2, b.betti_mod2, "{what}");
+    }
+}
+
+#[test]
+fn gpu_scans_with_device_values_are_the_cpu_scans_through_lattice_zeros() {
+    let Some(g) = gpu("gpu_scans_with_device_values_are_the_cpu_scans_through_lattice_zeros")
+    else {
+        return;
+    };
+    let modes = precisions(&g);
+    drop(g);
+    for (c, p) in lattice_zero_cases().iter().enumerate() {
+        let tri = p.triangulation.build(p.dim()).unwrap();
+        let bbox = p.bbox.clone().unwrap();
+        let opts = TraceOptions {
+            bbox: Some(bbox.clone()),
+            ..TraceOptions::default()
+        };
+        let cpu = exhaustive(&p.system, &tri, &CpuOracle::new(&p.system), &opts).unwrap();
+        assert!(cpu.len() > 10, "{}: only {} simplices", p.name, cpu.len());
+        for &precision in &modes {
+            for perturb in [None, Some(c as u64)] {
+                let got = device_value_scan(p, &tri, &bbox, precision, perturb);
+                let what = format!("{} {precision:?}, perturbed {perturb:?}", p.name);
+                assert_same_scan(p, &bbox, &cpu, &got, &what);
+            }
+        }
+    }
+}
+
+/// Boxes whose faces pass within 1e-13 of crossings of M, on either side: whether a crossing
+/// is in the box is the CPU's decision, so the device's rounding cannot move it.
+#[test]
+fn gpu_scans_with_device_values_keep_the_cpu_box_within_1e_13_of_crossings() {
+    let Some(g) = gpu("gpu_scans_with_device_values_keep_the_cpu_box_within_1e_13_of_crossings")
+    else {
+        return;
+    };
+    let modes = precisions(&g);
+    drop(g);
+    let cases: [Scaled; 3] = [
+        ("sphere", vec![("edge", 0.1)], 0.8),
+        ("flat-torus", vec![("edge", 0.2)], 0.8),
+        ("cut-flat-torus", vec![("edge", 0.3)], 1.1),
+    ];
+    let scan = |p: &Problem, tri: &Triangulation, bbox: &[[f64; 2]]| {
+        let opts = TraceOptions {
+            bbox: Some(bbox.to_vec()),
+            ..TraceOptions::default()
+        };
+        exhaustive(&p.system, tri, &CpuOracle::new(&p.system), &opts).unwrap()
+    };
+    let holds = |s: &Sample, x: &[f64]| (0..s.len()).any(|i| s.point(i) == x);
+    for (c, (name, params, half)) in cases.iter().enumerate() {
+        let p = problem(name, params);
+        let tri = p.triangulation.build(p.dim()).unwrap();
+        let whole = scan(&p, &tri, &cube(p.dim(), *half));
+        // The crossing furthest along x1 and the one furthest back along x2.
+        let extreme = |axis: usize, sign: f64| {
+            let key = |i: &usize| sign * whole.point(*i)[axis];
+            whole.point(
+                (0..whole.len())
+                    .max_by(|i, j| key(i).total_cmp(&key(j)))
+                    .unwrap(),
+            )
+        };
+        let (a, b) = (extreme(0, 1.0), extreme(1, -1.0));
+        for side in [1e-13, -1e-13] {
+            // The top face of x1 just beyond (or just short of) a, the bottom face of x2 of b.
+            let mut bbox = cube(p.dim(), *half);
+            bbox[0][1] = a[0] + side;
+            bbox[1][0] = b[1] - side;
+            let cpu = scan(&p, &tri, &bbox);
+            assert_eq!(holds(&cpu, &a), side > 0.0, "{name}: the CPU box at {a:?}");
+            assert_eq!(holds(&cpu, &b), side > 0.0, "{name}: the CPU box at {b:?}");
+            for &precision in &modes {
+                let perturb = Some(c as u64);
+                let got = device_value_scan(&p, &tri, &bbox, precision, perturb);
+                let what = format!("{name} {precision:?}, side {side}");
+                assert_same_scan(&p, &bbox, &cpu, &got, &what);
+            }
+        }
+    }
+}
+
+/// The CPU evaluates f only at vertices of the candidates the device found crossed or could
+/// not decide (counted here from the grid, the candidates and the device's verdicts).
+#[test]
+fn gpu_scans_with_device_values_evaluate_on_the_cpu_only_what_the_device_left_open() {
+    use isomesh::cpu::certificate::OUTSIDE;
+    use std::collections::HashSet;
+    let Some(g) =
+        gpu("gpu_scans_with_device_values_evaluate_on_the_cpu_only_what_the_device_left_open")
+    else {
+        return;
+    };
+    let modes = precisions(&g);
+    drop(g);
+    let cases: [Scaled; 4] = [
+        ("sphere", vec![("edge", 0.1)], 0.8),
+        ("chair", vec![("edge", 0.1)], 1.0),
+        ("flat-torus", vec![("edge", 0.2)], 0.8),
+        (
+            "3-torus",
+            vec![("a", 0.5), ("b", 0.5), ("c", 0.5), ("edge", 0.9)],
+            0.7,
+        ),
+    ];
+    for (c, (name, params, half)) in cases.iter().enumerate() {
+        let p = problem(name, params);
+        let tri = p.triangulation.build(p.dim()).unwrap();
+        let bbox = cube(p.dim(), *half);
+        let opts = TraceOptions {
+            bbox: Some(bbox.clone()),
+            ..TraceOptions::default()
+        };
+        let n = isomesh::expr::ImplicitFunction::codim(&p.system) + 1;
+        for &precision in &modes {
+            let perturb = (c % 2 == 1).then_some(c as u64);
+            let oracle = GpuOracle::new(reopen(), &p.system, precision).unwrap();
+            oracle.set_device_values(true);
+            oracle.perturb_device_values(perturb);
+            let grid = scan_grid(&p.system, &tri, &oracle, &opts).unwrap();
+            let cands = candidates(&grid, 0..grid.len());
+            let mut verdicts = vec![0; cands.rows.len() / n];
+            oracle
+                .decide_certified(grid.values(), grid.bounds(), &cands.rows, &mut verdicts)
+                .unwrap();
+            let open: HashSet<u32> = cands
+                .rows
+                .chunks_exact(n)
+                .zip(&verdicts)
+                .filter(|(_, &v)| v != OUTSIDE)
+                .flat_map(|(row, _)| row.iter().copied())
+                .collect();
+            let st = device_value_scan(&p, &tri, &bbox, precision, perturb).stats;
+            let what = format!("{name} {precision:?}: {st:?}");
+            assert_eq!(st.device_vertex_evaluations, grid.len() as u64, "{what}");
+            assert!(
+                st.cpu_vertex_evaluations <= open.len() as u64,
+                "{what}: {} vertices of open candidates",
+                open.len()
+            );
+            assert!(st.cpu_vertex_evaluations > 0, "{what}");
+            assert!(
+                st.cpu_vertex_evaluations * 4 < st.device_vertex_evaluations,
+                "{what}"
+            );
+        }
+    }
+}
+
+/// An exhaustive scan of `bbox` on the GPU with device values (perturbed within their bounds
+/// from `perturb`), in `precision`.
+fn device_value_scan(
+    p: &Problem,
+    tri: &Triangulation,
+    bbox: &[[f64; 2]],
+    precision: Option<Precision>,
+    perturb: Option<u64>,
+) -> Sample {
+    let oracle = GpuOracle::new(reopen(), &p.system, precision).unwrap();
+    oracle.set_device_values(true);
+    oracle.perturb_device_values(perturb);
+    let opts = TraceOptions {
+        bbox: Some(bbox.to_vec()),
+        ..TraceOptions::default()
+    };
+    exhaustive(&p.system, tri, &oracle, &opts).unwrap()
+}
+
+#[test]
+fn gpu_scans_with_device_values_are_the_cpu_scans() {
+    let Some(g) = gpu("gpu_scans_with_device_values_are_the_cpu_scans") else {
+        return;
+    };
+    let modes = precisions(&g);
+    drop(g);
+    for (c, (name, params, half)) in device_value_cases().iter().enumerate() {
+        let p = problem(name, params);
+        let tri = p.triangulation.build(p.dim()).unwrap();
+        let bbox = p.bbox.clone().unwrap_or_else(|| cube(p.dim(), *half));
+        let opts = TraceOptions {
+            bbox: Some(bbox.clone()),
+            ..TraceOptions::default()
+        };
+        let cpu = exhaustive(&p.system, &tri, &CpuOracle::new(&p.system), &opts).unwrap();
+        assert!(cpu.len() > 10, "{name}: only {} simplices", cpu.len());
+        for &precision in &modes {
+            // Every other case with device values moved within their bounds.
+            let perturb = (c % 2 == 1).then_some(c as u64);
+            let got = device_value_scan(&p, &tri, &bbox, precision, perturb);
+            let what = format!("{name} {params:?} {precision:?}, perturbed {perturb:?}");
+            assert_same_scan(&p, &bbox, &cpu, &got, &what);
+            let st = &got.stats;
+            // The device evaluated the grid; the CPU only a small part of it.
+            assert!(st.device_vertex_evaluations > 0, "{what}: {st:?}");
+            assert!(
+                st.cpu_vertex_evaluations * 4 < st.device_vertex_evaluations,
+                "{what}: {st:?}"
+            );
+            eprintln!(
+                "{what}: {} device and {} CPU vertex evaluations, {} device and {} CPU \
+                 decisions",
+                st.device_vertex_evaluations,
+                st.cpu_vertex_evaluations,
+                st.device_decisions,
+                st.cpu_decisions
+            );
+        }
     }
 }

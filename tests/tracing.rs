@@ -470,7 +470,7 @@ impl Oracle for Probe<'_> {
         simplices: &[u32],
         status: &mut [Status],
         lambda: &mut [f64],
-    ) -> isomesh::Result<u64> {
+    ) -> isomesh::Result<isomesh::trace::Decisions> {
         let exact = self.inner.decide(values, simplices, status, lambda)?;
         if let Some(c) = &self.cancel {
             if status.iter().any(|s| s.crossed()) {

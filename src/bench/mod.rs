@@ -14,7 +14,7 @@ use serde::Deserialize;
 use crate::cpu::solve::Status;
 use crate::error::{Error, Result};
 use crate::expr::{preset, ClosureFunction, Problem};
-use crate::trace::{trace, Oracle, Sample, TraceOptions};
+use crate::trace::{exhaustive, trace, Oracle, Sample, TraceOptions};
 
 #[cfg(feature = "surface-nets")]
 pub mod surfaces;
@@ -90,6 +90,73 @@ pub fn trace_case(p: &Problem, oracle: &dyn Oracle) -> Result<Sample> {
     };
     trace(&p.system, &tri, oracle, &opts)
 }
+
+/// An exhaustive scan of `bbox`, the rim completed.
+pub fn scan_case(p: &Problem, bbox: &[[f64; 2]], oracle: &dyn Oracle) -> Result<Sample> {
+    let tri = p.triangulation.build(p.dim())?;
+    let opts = TraceOptions {
+        bbox: Some(bbox.to_vec()),
+        ..TraceOptions::default()
+    };
+    exhaustive(&p.system, &tri, oracle, &opts)
+}
+
+/// A box scanned by `isomesh bench --traces scans`: a preset with parameters, and the box's
+/// half-widths, the last one repeated for the remaining axes.
+pub struct ScanCase {
+    /// Shown in the table.
+    pub label: &'static str,
+    /// The preset.
+    pub preset: &'static str,
+    /// Its parameters.
+    pub params: &'static [(&'static str, f64)],
+    /// Half-widths of the box, centred at 0.
+    pub half: &'static [f64],
+}
+
+impl ScanCase {
+    /// The preset resolved.
+    pub fn problem(&self) -> Result<Problem> {
+        let params: Vec<(String, f64)> = self
+            .params
+            .iter()
+            .map(|(n, v)| (n.to_string(), *v))
+            .collect();
+        preset(self.preset, &params)
+    }
+
+    /// The box in R^d.
+    pub fn bbox(&self, d: usize) -> Vec<[f64; 2]> {
+        (0..d)
+            .map(|i| {
+                let h = self.half[i.min(self.half.len() - 1)];
+                [-h, h]
+            })
+            .collect()
+    }
+}
+
+/// The scans of `isomesh bench --traces scans`: a surface, curves and higher codimension.
+pub const SCAN_CASES: &[ScanCase] = &[
+    ScanCase {
+        label: "torus in R^3",
+        preset: "torus",
+        params: &[("edge", 0.05)],
+        half: &[2.0, 2.0, 1.0],
+    },
+    ScanCase {
+        label: "flat torus in R^4",
+        preset: "flat-torus",
+        params: &[("edge", 0.15)],
+        half: &[1.1],
+    },
+    ScanCase {
+        label: "3-torus in R^6",
+        preset: "3-torus",
+        params: &[("a", 0.5), ("b", 0.5), ("c", 0.5), ("edge", 1.2)],
+        half: &[3.0],
+    },
+];
 
 /// A batch of k-simplices for the oracle alone: random vertex values in [-1, 1] (so that
 /// the cheap sign filter passes most of them to the solve, and a good share is crossed),

@@ -7,14 +7,14 @@ use std::path::PathBuf;
 
 use clap::{Args, ValueEnum};
 use isomesh::bench::surfaces::{check_grid, crossover, measure_sizes, CHUNK, SURFACES};
-use isomesh::bench::{timed, trace_case, OracleBatch, ReferenceCase};
+use isomesh::bench::{scan_case, timed, trace_case, OracleBatch, ReferenceCase, SCAN_CASES};
 use isomesh::export::plot::{write_charts, Chart, Series, PALETTE};
 use isomesh::export::write_atomic;
 
 use super::text::say;
 use isomesh::expr::ImplicitFunction;
 use isomesh::gpu::{Gpu, GpuOracle, Precision};
-use isomesh::trace::{CpuOracle, Oracle};
+use isomesh::trace::{CpuOracle, Oracle, TraceStats};
 use isomesh::{Error, Result};
 use serde_json::{json, Value};
 
@@ -32,6 +32,9 @@ pub enum TraceSet {
     /// Surfaces in R^3 (trace + complex + triangles) against the grid mesher
     /// fast-surface-nets (sampling + meshing) at matched vertex counts, on the CPU.
     Surfaces,
+    /// Exhaustive scans of boxes on the CPU, on the GPU, and on the GPU with f's values
+    /// from the device, with the split of vertex evaluations and decisions.
+    Scans,
 }
 
 /// Flags of `isomesh bench`.
@@ -48,7 +51,8 @@ pub struct BenchArgs {
     #[arg(long, default_value_t = 3)]
     pub repeats: usize,
     /// Whole traces, a list: none, quick (reference cases up to 200,000 simplices), all
-    /// (every reference case), surfaces (against a grid mesher, sizes from --grid).
+    /// (every reference case), surfaces (against a grid mesher, sizes from --grid), scans
+    /// (exhaustive scans of boxes, with device values on a GPU).
     #[arg(long, value_enum, value_delimiter = ',', default_value = "quick")]
     pub traces: Vec<TraceSet>,
     /// Grid sizes (interior samples per axis, multiples of 64) for --traces surfaces.
@@ -152,6 +156,7 @@ fn run_in_pool(args: &BenchArgs, threads: usize) -> Result<()> {
     let oracle_rows = oracle_table(args, gpu.as_ref(), &precisions)?;
     let eval_rows = eval_table(args, gpu.as_ref(), &precisions)?;
     let trace_rows = trace_table(args, gpu.as_ref())?;
+    let scan_rows = scan_table(args, gpu.as_ref())?;
     let (surface_rows, crossovers) = surface_table(args)?;
 
     if let Some(path) = &args.png {
@@ -167,6 +172,7 @@ fn run_in_pool(args: &BenchArgs, threads: usize) -> Result<()> {
             "oracle": oracle_rows,
             "vertex_eval": eval_rows,
             "traces": trace_rows,
+            "scans": scan_rows,
             "surfaces": surface_rows,
             "crossover_vertices": crossovers,
         });
@@ -345,8 +351,8 @@ fn trace_table(args: &BenchArgs, gpu: Option<&Gpu>) -> Result<Vec<Value>> {
         "\nTraces of the reference cases (C++: GUDHI, one thread), median of {}\n",
         args.repeats
     );
-    say!("| case | d | k | simplices | C++ | CPU | CPU speed-up | GPU | GPU speed-up | same S |");
-    say!("|---|---|---|---|---|---|---|---|---|---|");
+    say!("| case | d | k | simplices | C++ | CPU | CPU speed-up | GPU | GPU speed-up | decided on the GPU | same S |");
+    say!("|---|---|---|---|---|---|---|---|---|---|---|");
     let cases = ReferenceCase::parse_all(include_str!("../../benches/reference.toml"))?;
     for case in cases.iter().filter(|c| c.simplices <= limit) {
         let p = case.problem()?;
@@ -358,7 +364,7 @@ fn trace_table(args: &BenchArgs, gpu: Option<&Gpu>) -> Result<Vec<Value>> {
             "reference_simplices": case.simplices, "reference_s": case.seconds,
             "cpu_s": cpu_s, "cpu_speedup": case.speedup(n, cpu_s),
         });
-        let mut gpu_cols = ("-".to_string(), "-".to_string(), "-");
+        let mut gpu_cols = ("-".to_string(), "-".to_string(), "-".to_string(), "-");
         if let Some(g) = gpu {
             let o = GpuOracle::new(g.clone(), &p.system, None)?;
             let (gpu_s, s) = timed(args.repeats, || trace_case(&p, &o))?;
@@ -366,8 +372,10 @@ fn trace_table(args: &BenchArgs, gpu: Option<&Gpu>) -> Result<Vec<Value>> {
             gpu_cols = (
                 format!("{gpu_s:.3} s"),
                 format!("{:.1}x", case.speedup(s.len(), gpu_s)),
+                device_share(&s.stats),
                 if same { "yes" } else { "NO" },
             );
+            split_keys(&mut row, &s.stats);
             row["gpu_s"] = json!(gpu_s);
             row["gpu_speedup"] = json!(case.speedup(s.len(), gpu_s));
             row["gpu_precision"] = json!(o.precision().ty());
@@ -380,7 +388,7 @@ fn trace_table(args: &BenchArgs, gpu: Option<&Gpu>) -> Result<Vec<Value>> {
             }
         }
         say!(
-            "| {} | {} | {} | {n} | {} s | {cpu_s:.3} s | {:.1}x | {} | {} | {} |",
+            "| {} | {} | {} | {n} | {} s | {cpu_s:.3} s | {:.1}x | {} | {} | {} | {} |",
             case.label,
             p.dim(),
             p.system.codim(),
@@ -388,9 +396,101 @@ fn trace_table(args: &BenchArgs, gpu: Option<&Gpu>) -> Result<Vec<Value>> {
             case.speedup(n, cpu_s),
             gpu_cols.0,
             gpu_cols.1,
-            gpu_cols.2
+            gpu_cols.2,
+            gpu_cols.3
         );
         row["short"] = json!(case.short);
+        rows.push(row);
+    }
+    Ok(rows)
+}
+
+/// The share of a run's decisions the device made, as a percentage.
+fn device_share(st: &TraceStats) -> String {
+    let all = st.device_decisions + st.cpu_decisions;
+    format!(
+        "{:.1}%",
+        100.0 * st.device_decisions as f64 / all.max(1) as f64
+    )
+}
+
+/// The split of a run's work between device and CPU, under the report's keys.
+fn split_keys(row: &mut Value, st: &TraceStats) {
+    row["device_vertex_evaluations"] = json!(st.device_vertex_evaluations);
+    row["cpu_vertex_evaluations"] = json!(st.cpu_vertex_evaluations);
+    row["device_decisions"] = json!(st.device_decisions);
+    row["cpu_decisions"] = json!(st.cpu_decisions);
+}
+
+/// Exhaustive scans of boxes: the CPU, the GPU deciding from the CPU's values, and the GPU
+/// with f's values (certified) from the device, with the split of the work.
+fn scan_table(args: &BenchArgs, gpu: Option<&Gpu>) -> Result<Vec<Value>> {
+    let mut rows = Vec::new();
+    if !args.traces.contains(&TraceSet::Scans) {
+        return Ok(rows);
+    }
+    say!("\nExhaustive scans, median of {}; vertices and decisions: device / CPU, with device values\n", args.repeats);
+    say!("| case | vertices | simplices | CPU | GPU | GPU, device values | vertices | decisions | same S |");
+    say!("|---|---|---|---|---|---|---|---|---|");
+    for case in SCAN_CASES {
+        let p = case.problem()?;
+        let cpu_oracle = CpuOracle::new(&p.system);
+        let (cpu_s, cpu) = timed(args.repeats, || {
+            scan_case(&p, &case.bbox(p.dim()), &cpu_oracle)
+        })?;
+        let mut row = json!({
+            "case": case.label, "d": p.dim(), "k": p.system.codim(), "simplices": cpu.len(),
+            "vertices": cpu.stats.vertices, "cpu_s": cpu_s,
+        });
+        let mut cols = [
+            "-".to_string(),
+            "-".into(),
+            "-".into(),
+            "-".into(),
+            "-".into(),
+        ];
+        if let Some(g) = gpu {
+            let bbox = case.bbox(p.dim());
+            let o = GpuOracle::new(g.clone(), &p.system, None)?;
+            let (gpu_s, plain) = timed(args.repeats, || scan_case(&p, &bbox, &o))?;
+            o.set_device_values(true);
+            let (values_s, dev) = timed(args.repeats, || scan_case(&p, &bbox, &o))?;
+            let st = &dev.stats;
+            let same =
+                plain.sorted_keys() == cpu.sorted_keys() && dev.sorted_keys() == cpu.sorted_keys();
+            cols = [
+                format!("{gpu_s:.3} s"),
+                format!("{values_s:.3} s"),
+                format!(
+                    "{} / {}",
+                    st.device_vertex_evaluations, st.cpu_vertex_evaluations
+                ),
+                format!("{} / {}", st.device_decisions, st.cpu_decisions),
+                if same { "yes" } else { "NO" }.into(),
+            ];
+            row["gpu_s"] = json!(gpu_s);
+            row["device_values_s"] = json!(values_s);
+            row["gpu_precision"] = json!(o.precision().ty());
+            split_keys(&mut row, st);
+            row["same_sample"] = json!(same);
+            if !same {
+                return Err(Error::Gpu(format!(
+                    "{}: a GPU scan differs from the CPU's",
+                    case.label
+                )));
+            }
+        }
+        say!(
+            "| {} | {} | {} | {cpu_s:.3} s | {} | {} | {} | {} | {} |",
+            case.label,
+            cpu.stats.vertices,
+            cpu.len(),
+            cols[0],
+            cols[1],
+            cols[2],
+            cols[3],
+            cols[4]
+        );
         rows.push(row);
     }
     Ok(rows)

@@ -91,6 +91,7 @@ pub(super) fn plan_outputs(args: &TraceArgs, p: &Problem) -> Result<Plan> {
         for (set, flag) in [
             (args.precision.is_some(), "--precision"),
             (args.level_slice.is_some(), "--level-slice"),
+            (args.device_values, "--device-values"),
         ] {
             if set {
                 return Err(Error::Spec(format!(

@@ -101,6 +101,11 @@ pub struct TraceArgs {
     /// 0: whole levels). The result does not depend on it.
     #[arg(long, allow_hyphen_values = true, value_parser = parse_count::<usize>)]
     pub level_slice: Option<usize>,
+    /// GPU backend, --exhaustive: evaluate f on the device with certified bounds and on the
+    /// CPU only at the vertices of simplices the device found crossed or could not decide.
+    /// The result does not depend on it.
+    #[arg(long)]
+    pub device_values: bool,
     /// Worker threads (default: all cores).
     #[arg(long, allow_hyphen_values = true, value_parser = parse_count::<usize>)]
     pub threads: Option<usize>,
@@ -344,8 +349,12 @@ fn run_in_pool(p: &Problem, args: &TraceArgs, plan: &Plan, threads: usize) -> Re
             Err(e) => {
                 if !args.quiet {
                     eprintln!("note: {e}; using the CPU");
-                    if args.precision.is_some() || args.level_slice.is_some() {
-                        eprintln!("note: --precision and --level-slice do not apply on the CPU");
+                    if args.precision.is_some() || args.level_slice.is_some() || args.device_values
+                    {
+                        eprintln!(
+                            "note: --precision, --level-slice and --device-values do not apply \
+                             on the CPU"
+                        );
                     }
                 }
                 None
@@ -359,6 +368,9 @@ fn run_in_pool(p: &Problem, args: &TraceArgs, plan: &Plan, threads: usize) -> Re
     };
     if let (Some(o), Some(slice)) = (&gpu_oracle, args.level_slice) {
         o.set_level_slice(slice);
+    }
+    if let Some(o) = &gpu_oracle {
+        o.set_device_values(args.device_values);
     }
     let oracle: &dyn Oracle = match &gpu_oracle {
         Some(o) => o,

@@ -18,6 +18,9 @@ macro_rules! unrolled {
 }
 pub(crate) use unrolled;
 
+pub mod certificate;
+#[cfg(test)]
+mod certificate_fuzz;
 pub mod pivot;
 pub mod solve;
 #[cfg(test)]

@@ -255,7 +255,7 @@ pub(crate) fn scaled_row_factors(k: usize, val: impl Fn(usize, usize) -> f64, ou
 
 /// A power of two near 1/v (1 for 0 or subnormal v): scaling by it is exact.
 #[inline]
-fn pow2_inverse(v: f64) -> f64 {
+pub(crate) fn pow2_inverse(v: f64) -> f64 {
     let e = ((v.to_bits() >> 52) & 0x7ff) as i64;
     if e == 0 || e == 0x7ff {
         return 1.0;

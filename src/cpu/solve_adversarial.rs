@@ -11,7 +11,7 @@ use super::solve::{exact_decision, Decider, Status};
 
 /// The kinds of inputs, one per case in turn.
 #[derive(Clone, Copy, Debug)]
-enum Kind {
+pub(super) enum Kind {
     /// Uniform in [-1, 1].
     Uniform,
     /// Vertex values on a random hyperplane of R^k through 0, moved off it by 2^-40..2^-60.
@@ -30,7 +30,7 @@ enum Kind {
     WildEntries,
 }
 
-const KINDS: [Kind; 8] = [
+pub(super) const KINDS: [Kind; 8] = [
     Kind::Uniform,
     Kind::NearlySingular,
     Kind::NearlyEqual,
@@ -42,7 +42,7 @@ const KINDS: [Kind; 8] = [
 ];
 
 /// Vertex values of one k-simplex of `kind` (k + 1 rows of k).
-fn values(kind: Kind, k: usize, rng: &mut ChaCha8Rng) -> Vec<f64> {
+pub(super) fn values(kind: Kind, k: usize, rng: &mut ChaCha8Rng) -> Vec<f64> {
     let n = k + 1;
     let mut v: Vec<f64> = (0..n * k).map(|_| rng.random_range(-1.0..1.0)).collect();
     match kind {

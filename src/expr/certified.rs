@@ -142,6 +142,12 @@ pub trait DeviceReal: Copy + PartialOrd + std::fmt::Debug {
     fn of(x: f64) -> Self;
     /// Widens to f64 (exact).
     fn wide(self) -> f64;
+    /// The smallest value of this type at or above `x` (x itself in f64).
+    fn of_up(x: f64) -> Self;
+    /// The unit roundoff of this type.
+    const UNIT: f64;
+    /// The smallest positive normal value of this type.
+    const MIN_NORMAL: f64;
     /// a + b.
     fn add(self, b: Self) -> Self;
     /// a - b.
@@ -175,6 +181,20 @@ macro_rules! device_real {
             fn wide(self) -> f64 {
                 self as f64
             }
+            fn of_up(x: f64) -> Self {
+                let r = x as $t;
+                if (r as f64) >= x || r.is_nan() {
+                    r
+                } else if r == 0.0 {
+                    <$t>::from_bits(1)
+                } else if r > 0.0 {
+                    <$t>::from_bits(r.to_bits() + 1)
+                } else {
+                    <$t>::from_bits(r.to_bits() - 1)
+                }
+            }
+            const UNIT: f64 = <$t>::EPSILON as f64 / 2.0;
+            const MIN_NORMAL: f64 = <$t>::MIN_POSITIVE as f64;
             fn add(self, b: Self) -> Self {
                 self + b
             }

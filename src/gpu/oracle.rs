@@ -32,18 +32,21 @@ use crate::error::{Error, Result};
 use crate::expr::ImplicitFunction;
 use crate::report::BackendInfo;
 use crate::trace::scan::candidates::{candidates, Candidates};
-use crate::trace::{CpuOracle, Oracle, ScanGrid};
+use crate::trace::{CpuOracle, Decisions, Oracle, ScanGrid};
 use crate::triangulation::Triangulation;
 
 mod device;
 mod eval_certified;
 mod eval_vertices;
+mod perturb;
 mod scan;
 mod solve;
+mod solve_certified;
 
 use device::{pipeline, STAGES};
 pub use scan::{scan_shader, MAX_GPU_SCAN_DIM, SCAN_WGSL};
 pub use solve::{solve_shader, SOLVE_WGSL};
+pub use solve_certified::{solve_certified_shader, SOLVE_CERTIFIED_WGSL};
 
 /// Counters of a GPU oracle.
 #[derive(Clone, Copy, Debug, Default)]
@@ -80,6 +83,8 @@ pub struct GpuOracle<'f> {
     scan: OnceLock<wgpu::ComputePipeline>,
     /// The certified vertex shader, built on first use.
     certified: OnceLock<wgpu::ComputePipeline>,
+    /// The certified solve shader, built on first use.
+    solve_certified: OnceLock<wgpu::ComputePipeline>,
     /// Scan candidates per 2^16 cubes in the last dispatch, to size the next one's output.
     scan_density: AtomicU64,
     /// Most bytes per storage binding ([`GpuOracle::limit_binding`]).
@@ -95,6 +100,10 @@ pub struct GpuOracle<'f> {
     readback_ns: AtomicU64,
     /// Split each round trip into timed, synchronous steps (for benchmarks).
     phased: AtomicBool,
+    /// The exhaustive scan takes f's values from the device ([`GpuOracle::set_device_values`]).
+    device_values: AtomicBool,
+    /// Test hook: device values moved within their bounds (0: off, else a seed).
+    perturb: AtomicU64,
     /// Buffers kept across calls, per stage and role; they grow when a batch needs more.
     buffers: Mutex<[Vec<Option<wgpu::Buffer>>; STAGES]>,
 }
@@ -129,6 +138,7 @@ impl<'f> GpuOracle<'f> {
             eval: OnceLock::new(),
             scan: OnceLock::new(),
             certified: OnceLock::new(),
+            solve_certified: OnceLock::new(),
             scan_density: AtomicU64::new(1 << 12),
             binding_limit: AtomicU64::new(1 << 30),
             level_slice: AtomicUsize::new(0),
@@ -140,6 +150,8 @@ impl<'f> GpuOracle<'f> {
             compute_ns: AtomicU64::new(0),
             readback_ns: AtomicU64::new(0),
             phased: AtomicBool::new(false),
+            device_values: AtomicBool::new(false),
+            perturb: AtomicU64::new(0),
             buffers: Mutex::new(Default::default()),
         })
     }
@@ -206,6 +218,25 @@ impl<'f> GpuOracle<'f> {
     pub fn set_level_slice(&self, simplices: usize) {
         self.level_slice.store(simplices, Ordering::Relaxed);
     }
+
+    /// With `on`, the exhaustive scan evaluates f on the device with certified bounds, takes
+    /// the device's certified verdicts, and evaluates f on the CPU only at the vertices of
+    /// the simplices the device found crossed or could not decide
+    /// ([`crate::trace::scan::device_values`]). S, its order and its points are the same
+    /// either way. Off by default.
+    pub fn set_device_values(&self, on: bool) {
+        self.device_values.store(on, Ordering::Relaxed);
+    }
+
+    #[doc(hidden)] // for tests
+    /// With `Some(seed)`, every certified value the device returns is replaced by the CPU's
+    /// value plus t times its bound, t in (-1, 1) drawn from the seed and the vertex (half
+    /// the time within 2^-10 of +-1): a device that rounds otherwise, within the claimed
+    /// bounds. S must not change.
+    pub fn perturb_device_values(&self, seed: Option<u64>) {
+        self.perturb
+            .store(seed.map_or(0, |s| s | 1 << 63), Ordering::Relaxed);
+    }
 }
 
 impl Oracle for GpuOracle<'_> {
@@ -240,8 +271,40 @@ impl Oracle for GpuOracle<'_> {
         simplices: &[u32],
         status: &mut [Status],
         lambda: &mut [f64],
-    ) -> Result<u64> {
+    ) -> Result<Decisions> {
         self.decide_pipelined(values, simplices, status, lambda)
+    }
+
+    fn certified_values(&self) -> bool {
+        self.device_values.load(Ordering::Relaxed)
+    }
+
+    fn eval_certified(&self, tri: &Triangulation, lattice: &[i32], out: &mut [f64]) -> Result<()> {
+        let got = self.certified_stage(tri, lattice)?;
+        let big = self.precision.accuracy().big;
+        for (o, g) in out.chunks_exact_mut(2).zip(got.chunks_exact(2)) {
+            let (v, e) = (g[0], g[1]);
+            let known = e < big && v.abs() < big;
+            o[0] = v;
+            o[1] = if known { e } else { f64::INFINITY };
+        }
+        let seed = self.perturb.load(Ordering::Relaxed);
+        if seed != 0 {
+            self.perturb_values(tri, lattice, seed, out)?;
+        }
+        Ok(())
+    }
+
+    fn decide_certified(
+        &self,
+        values: &[f64],
+        bounds: &[f64],
+        simplices: &[u32],
+        verdicts: &mut [u32],
+    ) -> Result<()> {
+        let got = self.certified_verdicts(values, bounds, simplices)?;
+        verdicts.copy_from_slice(&got);
+        Ok(())
     }
 }
 

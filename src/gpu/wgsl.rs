@@ -44,7 +44,8 @@ impl Precision {
         }
     }
 
-    fn literal(self, v: f64) -> Result<String> {
+    /// `v` as a WGSL literal of this precision (rounded to nearest in f32).
+    pub(crate) fn literal(self, v: f64) -> Result<String> {
         let text = match self {
             Precision::F32 => {
                 let f = v as f32;

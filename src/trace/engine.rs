@@ -8,7 +8,7 @@ use rayon::prelude::*;
 
 use super::level::{sort, Back, Found, Frontier};
 use super::table::{Key, Table};
-use super::{Progress, StopReason, TraceContext, TraceStats, DEFAULT_EXTENT_STEPS};
+use super::{Decisions, Progress, StopReason, TraceContext, TraceStats, DEFAULT_EXTENT_STEPS};
 use crate::cpu::solve::Status;
 use crate::error::Result;
 
@@ -211,6 +211,20 @@ impl<'a, const W: usize> Engine<'a, W> {
         }
         self.values.extend_from_slice(&vals);
         self.stats.vertices += keys.len() as u64;
+        self.stats.cpu_vertex_evaluations += keys.len() as u64;
+        Ok(())
+    }
+
+    /// Caches values of f already computed on the CPU (`lattice`: rows of d, `values`: rows
+    /// of k), at vertices not cached yet; not counted again.
+    pub(super) fn seed_vertices(&mut self, lattice: &[i32], values: &[f64]) -> Result<()> {
+        let (d, k) = (self.ctx.d, self.ctx.k);
+        let mut key = [0u64; W];
+        for (v, f) in lattice.chunks_exact(d).zip(values.chunks_exact(k)) {
+            self.ctx.codec.encode_vertex(v, &mut key)?;
+            self.verts.insert_new(&key)?;
+            self.values.extend_from_slice(f);
+        }
         Ok(())
     }
 
@@ -221,10 +235,10 @@ impl<'a, const W: usize> Engine<'a, W> {
         Ok(verdicts)
     }
 
-    /// The oracle on simplices given as vertex-cache rows, and how many decisions took the
-    /// exact path; the counters are left to [`Engine::count`] (so that naming may run
+    /// The oracle on simplices given as vertex-cache rows, and how the decisions were
+    /// reached; the counters are left to [`Engine::count`] (so that naming may run
     /// meanwhile).
-    pub(super) fn judge(&self, rows: &[u32]) -> Result<(Verdicts, u64)> {
+    pub(super) fn judge(&self, rows: &[u32]) -> Result<(Verdicts, Decisions)> {
         let n = self.ctx.k + 1;
         let m = rows.len() / n;
         let mut status = vec![Status::Outside; m];
@@ -236,10 +250,13 @@ impl<'a, const W: usize> Engine<'a, W> {
         Ok((Verdicts { status, lambda }, exact))
     }
 
-    /// Counts the decisions `v`, of which `exact` took the exact path.
-    pub(super) fn count(&mut self, v: &Verdicts, exact: u64) {
-        self.stats.exact_decisions += exact;
-        self.stats.oracle_calls += v.status.len() as u64;
+    /// Counts the decisions `v`, reached as `how` says.
+    pub(super) fn count(&mut self, v: &Verdicts, how: Decisions) {
+        let m = v.status.len() as u64;
+        self.stats.exact_decisions += how.exact;
+        self.stats.oracle_calls += m;
+        self.stats.device_decisions += how.on_device;
+        self.stats.cpu_decisions += m - how.on_device;
         for s in &v.status {
             match s {
                 Status::Degenerate => self.stats.degenerate += 1,

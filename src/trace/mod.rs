@@ -33,7 +33,7 @@ use std::time::Instant;
 
 use serde::Serialize;
 
-pub use oracle::{CpuOracle, Oracle};
+pub use oracle::{CpuOracle, Decisions, Oracle};
 pub use region::{coord_bits, in_box, lattice_bounds, Domain};
 use sample::sample_from;
 pub use sample::Sample;
@@ -187,6 +187,14 @@ pub struct TraceStats {
     pub non_finite: u64,
     /// Lattice vertices where f was evaluated.
     pub vertices: u64,
+    /// Lattice vertices where a device evaluated f, with bounds.
+    pub device_vertex_evaluations: u64,
+    /// Lattice vertices where the CPU evaluated f.
+    pub cpu_vertex_evaluations: u64,
+    /// Decisions a device certified and the CPU did not redo.
+    pub device_decisions: u64,
+    /// Decisions made or redone on the CPU.
+    pub cpu_decisions: u64,
     /// Connected components of S.
     pub components: usize,
     /// Projected box samples used as seeds.
@@ -432,7 +440,7 @@ mod tests {
             simplices: &[u32],
             status: &mut [crate::cpu::solve::Status],
             lambda: &mut [f64],
-        ) -> Result<u64> {
+        ) -> Result<super::Decisions> {
             self.0.decide(values, simplices, status, lambda)
         }
         fn level_slice(&self) -> Option<usize> {

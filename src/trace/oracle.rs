@@ -27,6 +27,22 @@ fn chunk_for(len: usize) -> usize {
         .clamp(MIN_CHUNK, CHUNK)
 }
 
+/// How a batch of decisions ([`Oracle::decide`]) was reached.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Decisions {
+    /// Decisions that took the exact rational path.
+    pub exact: u64,
+    /// Decisions a device certified and the CPU did not redo.
+    pub on_device: u64,
+}
+
+impl std::ops::AddAssign for Decisions {
+    fn add_assign(&mut self, o: Decisions) {
+        self.exact += o.exact;
+        self.on_device += o.on_device;
+    }
+}
+
 /// A backend that evaluates f and decides k-simplices, one large batch per call.
 pub trait Oracle: Sync {
     /// A name for reports (`cpu`, or `gpu: ` and the adapter name).
@@ -38,14 +54,14 @@ pub trait Oracle: Sync {
 
     /// Decides n k-simplices: `simplices` holds n rows of k+1 indices of rows of `values`.
     /// Writes a status per simplex and, for crossed ones, lambda (n rows of k+1). Returns how
-    /// many decisions needed the exact path.
+    /// many decisions needed the exact path and how many the device took.
     fn decide(
         &self,
         values: &[f64],
         simplices: &[u32],
         status: &mut [Status],
         lambda: &mut [f64],
-    ) -> Result<u64>;
+    ) -> Result<Decisions>;
 
     /// Frontier simplices per slice of a trace level, for an oracle whose decisions run off
     /// the CPU (a device): the level is then named and decided slice by slice, naming slice
@@ -60,6 +76,43 @@ pub trait Oracle: Sync {
     /// [`candidates::candidates`], which is the default.
     fn scan_candidates(&self, grid: &ScanGrid, cubes: Range<usize>) -> Result<Candidates> {
         Ok(candidates::candidates(grid, cubes))
+    }
+
+    /// Whether the exhaustive scan takes f's values from the device with bounds
+    /// ([`Oracle::eval_certified`], [`Oracle::decide_certified`]) and evaluates f on the CPU
+    /// only where the device cannot decide. False, the default, for the CPU.
+    fn certified_values(&self) -> bool {
+        false
+    }
+
+    /// Certified values of f at lattice vertices: `lattice` holds n rows of d, `out` gets n
+    /// rows of k pairs (value, bound) such that the value of [`Oracle::eval_vertices`] lies
+    /// within the bound of the value (an infinite bound: unknown). Only where
+    /// [`Oracle::certified_values`]; the default says so.
+    fn eval_certified(&self, tri: &Triangulation, lattice: &[i32], out: &mut [f64]) -> Result<()> {
+        let _ = (tri, lattice, out);
+        Err(crate::error::Error::Trace(format!(
+            "the {} oracle has no certified values",
+            self.name()
+        )))
+    }
+
+    /// Certified verdicts on k-simplices whose vertex values are known only within bounds
+    /// (`values` and `bounds`: rows of k; infinite bounds unknown), per row of `simplices`
+    /// (k + 1 vertex indices): [`CROSSED`](crate::cpu::certificate::CROSSED) or
+    /// [`OUTSIDE`](crate::cpu::certificate::OUTSIDE) where that verdict holds for all values
+    /// within the bounds, else [`UNCERTAIN`](crate::cpu::certificate::UNCERTAIN), the
+    /// default.
+    fn decide_certified(
+        &self,
+        values: &[f64],
+        bounds: &[f64],
+        simplices: &[u32],
+        verdicts: &mut [u32],
+    ) -> Result<()> {
+        let _ = (values, bounds, simplices);
+        verdicts.fill(crate::cpu::certificate::UNCERTAIN);
+        Ok(())
     }
 }
 
@@ -125,35 +178,51 @@ impl Oracle for CpuOracle<'_> {
         simplices: &[u32],
         status: &mut [Status],
         lambda: &mut [f64],
-    ) -> Result<u64> {
-        let k = self.f.codim();
-        let n = k + 1;
-        let chunk = chunk_for(status.len());
-        let exact = simplices
-            .par_chunks(chunk * n)
-            .zip(status.par_chunks_mut(chunk))
-            .zip(lambda.par_chunks_mut(chunk * n))
-            .map_init(
-                || (Decider::new(k), vec![0.0; n * k]),
-                |(decider, local), ((idx, st), lam)| {
-                    let mut exact = 0;
-                    for ((row, s), l) in idx
-                        .chunks_exact(n)
-                        .zip(st.iter_mut())
-                        .zip(lam.chunks_exact_mut(n))
-                    {
-                        for (j, &v) in row.iter().enumerate() {
-                            let v = v as usize;
-                            local[j * k..(j + 1) * k].copy_from_slice(&values[v * k..(v + 1) * k]);
-                        }
-                        let dec = decider.decide(local, l);
-                        *s = dec.status;
-                        exact += dec.exact as u64;
-                    }
-                    exact
-                },
-            )
-            .sum();
-        Ok(exact)
+    ) -> Result<Decisions> {
+        let exact = decide_on_cpu(self.f.codim(), values, simplices, status, lambda);
+        Ok(Decisions {
+            exact,
+            on_device: 0,
+        })
     }
+}
+
+/// The CPU's decisions ([`Decider`], in parallel) of the k-simplices `simplices` (rows of k + 1
+/// indices of rows of `values`): statuses, lambda of the crossed ones, and the count of
+/// exact decisions, as [`Oracle::decide`] gives them.
+pub(crate) fn decide_on_cpu(
+    k: usize,
+    values: &[f64],
+    simplices: &[u32],
+    status: &mut [Status],
+    lambda: &mut [f64],
+) -> u64 {
+    let n = k + 1;
+    let chunk = chunk_for(status.len());
+    let exact = simplices
+        .par_chunks(chunk * n)
+        .zip(status.par_chunks_mut(chunk))
+        .zip(lambda.par_chunks_mut(chunk * n))
+        .map_init(
+            || (Decider::new(k), vec![0.0; n * k]),
+            |(decider, local), ((idx, st), lam)| {
+                let mut exact = 0;
+                for ((row, s), l) in idx
+                    .chunks_exact(n)
+                    .zip(st.iter_mut())
+                    .zip(lam.chunks_exact_mut(n))
+                {
+                    for (j, &v) in row.iter().enumerate() {
+                        let v = v as usize;
+                        local[j * k..(j + 1) * k].copy_from_slice(&values[v * k..(v + 1) * k]);
+                    }
+                    let dec = decider.decide(local, l);
+                    *s = dec.status;
+                    exact += dec.exact as u64;
+                }
+                exact
+            },
+        )
+        .sum();
+    exact
 }

@@ -24,8 +24,9 @@ pub(super) enum Stage {
     Scan,
     Eval,
     Certified,
+    SolveCertified,
 }
-pub(super) const STAGES: usize = 4;
+pub(super) const STAGES: usize = 5;
 
 impl GpuOracle<'_> {
     /// The bytes one storage binding may hold.

@@ -14,10 +14,12 @@ use super::GpuOracle;
 use crate::cpu::solve::{filter_verdict, scaled_rows, Status, BOUND_FACTOR, MAX_RELATIVE_BOUND};
 use crate::error::Result;
 use crate::gpu::wgsl::{validate, Precision};
-use crate::trace::{CpuOracle, Oracle};
+use crate::trace::{CpuOracle, Decisions, Oracle};
 
 /// The solve shader, before its prelude.
 pub const SOLVE_WGSL: &str = include_str!("../../../shaders/solve.wgsl");
+/// Gauss-Jordan inversion, shared by both solve shaders.
+pub(super) const GAUSS_JORDAN_WGSL: &str = include_str!("../../../shaders/gauss_jordan.wgsl");
 /// Simplices per pipelined chunk of a decision batch.
 const PIPELINE_CHUNK: usize = 1 << 17;
 /// Shader verdicts.
@@ -38,7 +40,7 @@ pub fn solve_shader(k: usize, p: Precision) -> Result<String> {
     let src = format!(
         "alias real = {ty};\nconst N: u32 = {n}u;\nconst NN: u32 = {nn}u;\nconst EPS: real = {eps};\n\
          const BOUND: real = {bound};\nconst BIG: real = {big};\n\
-         const MAX_RELATIVE_BOUND: real = {rel};\n{SOLVE_WGSL}",
+         const MAX_RELATIVE_BOUND: real = {rel};\n{GAUSS_JORDAN_WGSL}{SOLVE_WGSL}",
         bound = lit(BOUND_FACTOR),
         rel = lit(MAX_RELATIVE_BOUND),
         ty = p.ty(),
@@ -110,7 +112,7 @@ impl GpuOracle<'_> {
         simplices: &[u32],
         status: &mut [Status],
         lambda: &mut [f64],
-    ) -> Result<u64> {
+    ) -> Result<Decisions> {
         let n = self.k + 1;
         let rs = self.real_size();
         let chunk = self.chunk(rs * self.k * n).min(PIPELINE_CHUNK);
@@ -120,7 +122,7 @@ impl GpuOracle<'_> {
             .collect();
         // A pipeline: while the device solves chunk c, the host packs chunk c + 1 and
         // settles chunk c - 1 (keeps certified verdicts, re-decides the rest on the CPU).
-        let mut exact = 0;
+        let mut decided = Decisions::default();
         let mut next = ranges
             .first()
             .map(|r| self.prepare(values, simplices, r.clone(), status));
@@ -150,7 +152,7 @@ impl GpuOracle<'_> {
                 next = Some(self.prepare(values, simplices, r.clone(), status));
             }
             if let Some((prev, res)) = solved.take() {
-                exact += self.settle(values, simplices, &prev, &res, status, lambda)?;
+                decided += self.settle(values, simplices, &prev, &res, status, lambda)?;
             }
             let res = match (early, pending) {
                 (Some(res), _) => res,
@@ -161,9 +163,9 @@ impl GpuOracle<'_> {
             solved = Some((sent, res));
         }
         if let Some((prev, res)) = solved {
-            exact += self.settle(values, simplices, &prev, &res, status, lambda)?;
+            decided += self.settle(values, simplices, &prev, &res, status, lambda)?;
         }
-        Ok(exact)
+        Ok(decided)
     }
 }
 
@@ -205,7 +207,8 @@ impl GpuOracle<'_> {
     }
 
     /// Host side after the shader: keeps what the bound certifies and decides the rest of
-    /// `sent` on the CPU, in one gathered batch. Returns the count of exact decisions.
+    /// `sent` on the CPU, in one gathered batch. Returns the count of exact decisions and of
+    /// those the device took.
     fn settle(
         &self,
         values: &[f64],
@@ -214,7 +217,7 @@ impl GpuOracle<'_> {
         res: &[Vec<u8>],
         status: &mut [Status],
         lambda: &mut [f64],
-    ) -> Result<u64> {
+    ) -> Result<Decisions> {
         let started = Instant::now();
         let n = self.k + 1;
         let lam = self.decode_reals(&res[0]);
@@ -244,8 +247,7 @@ impl GpuOracle<'_> {
             .collect();
         let mut sub_status = vec![Status::Outside; recheck.len()];
         let mut sub_lambda = vec![0.0; recheck.len() * n];
-        let exact =
-            CpuOracle::new(self.f).decide(values, &sub, &mut sub_status, &mut sub_lambda)?;
+        let cpu = CpuOracle::new(self.f).decide(values, &sub, &mut sub_status, &mut sub_lambda)?;
         for ((&i, &s), l) in recheck
             .iter()
             .zip(&sub_status)
@@ -257,6 +259,9 @@ impl GpuOracle<'_> {
             }
         }
         add_time(&self.host_ns, started);
-        Ok(exact)
+        Ok(Decisions {
+            exact: cpu.exact,
+            on_device: (sent.len() - recheck.len()) as u64,
+        })
     }
 }

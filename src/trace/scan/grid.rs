@@ -9,6 +9,7 @@ use std::ops::Range;
 use rayon::prelude::*;
 
 use super::candidates::{sign_code, BASE};
+use super::device_values::bounded_sign_code;
 use super::MAX_SCAN_DIM;
 use crate::error::{Error, Result};
 use crate::trace::region::{in_box, lattice_bounds};
@@ -34,6 +35,7 @@ pub struct ScanGrid {
     total: usize,
     k: usize,
     values: Vec<f64>,
+    bounds: Vec<f64>,
     codes: Vec<u32>,
 }
 
@@ -67,9 +69,16 @@ impl ScanGrid {
         self.k
     }
 
-    /// f at every vertex, rows of k.
+    /// f at every vertex, rows of k: the CPU's values, or with an oracle that has
+    /// [`certified_values`](crate::trace::Oracle::certified_values), the device's.
     pub fn values(&self) -> &[f64] {
         &self.values
+    }
+
+    /// The bounds of the device's [`values`](Self::values) (the CPU's values lie within
+    /// them; infinite: unknown), or nothing when the values are the CPU's.
+    pub fn bounds(&self) -> &[f64] {
+        &self.bounds
     }
 
     /// The sign code of every vertex ([`crate::trace::scan::candidates::sign_code`], with
@@ -152,6 +161,13 @@ impl ScanGrid {
     }
 }
 
+/// Bytes per grid vertex: f's k values (and their bounds, with device values), the sign
+/// code and the coordinates while they are evaluated.
+fn vertex_bytes(ctx: &TraceContext) -> u64 {
+    let per_value = if ctx.oracle.certified_values() { 16 } else { 8 };
+    ctx.k as u64 * per_value + 12
+}
+
 /// The rows of lattice vertices whose position lies in `near` (a grown box).
 fn near_rows(ctx: &TraceContext, near: &[[f64; 2]]) -> Result<ScanGrid> {
     let d = ctx.d;
@@ -177,7 +193,7 @@ fn near_rows(ctx: &TraceContext, near: &[[f64; 2]]) -> Result<ScanGrid> {
     let a = ctx.tri.matrix();
     let volume: f64 = near.iter().map(|[lo, hi]| hi - lo).product();
     let estimate = crate::linalg::Lu::new(&a, d).map_or(f64::INFINITY, |lu| volume / lu.abs_det());
-    let bytes = estimate * (ctx.k as f64 * 8.0 + 12.0);
+    let bytes = estimate * vertex_bytes(ctx) as f64;
     if !(bytes <= ctx.max_memory as f64 && estimate < u32::MAX as f64) {
         return Err(Error::Trace(format!(
             "the exhaustive scan of this box needs about {estimate:.3e} lattice vertices, \
@@ -232,7 +248,7 @@ fn near_rows(ctx: &TraceContext, near: &[[f64; 2]]) -> Result<ScanGrid> {
             .collect()
     };
     let total: usize = spans.iter().map(|s| s.2 as usize).sum();
-    let need = total as u64 * (ctx.k as u64 * 8 + 12) + spans.len() as u64 * 32;
+    let need = total as u64 * vertex_bytes(ctx) + spans.len() as u64 * 32;
     if need > ctx.max_memory {
         return Err(Error::Trace(format!(
             "the exhaustive scan of this box needs {total} lattice vertices, about {}, over \
@@ -262,6 +278,7 @@ fn near_rows(ctx: &TraceContext, near: &[[f64; 2]]) -> Result<ScanGrid> {
         total,
         k: ctx.k,
         values: Vec::new(),
+        bounds: Vec::new(),
         codes: Vec::new(),
     })
 }
@@ -433,8 +450,13 @@ pub(crate) fn build(ctx: &TraceContext, bbox: &[[f64; 2]]) -> Result<ScanGrid> {
              smaller box or a larger edge"
         )));
     }
+    let on_device = ctx.oracle.certified_values();
     grid.values = vec![0.0; total * k];
+    if on_device {
+        grid.bounds = vec![0.0; total * k];
+    }
     grid.codes = vec![0; total];
+    let mut pairs = Vec::new();
     for start in (0..total).step_by(SLAB) {
         super::cancelled(ctx)?;
         let end = (start + SLAB).min(total);
@@ -447,17 +469,37 @@ pub(crate) fn build(ctx: &TraceContext, bbox: &[[f64; 2]]) -> Result<ScanGrid> {
                 grid.fill_coords(from..from + v.len() / d, v)
             });
         let values = &mut grid.values[start * k..end * k];
-        ctx.oracle.eval_vertices(ctx.tri, &lattice, values)?;
-        grid.codes[start..end]
-            .par_iter_mut()
-            .zip(lattice.par_chunks(d))
-            .zip(values.par_chunks(k))
-            .for_each(|((code, v), f)| {
-                let mut x = [0.0f64; MAX_DIM];
-                ctx.tri.vertex_coords(v, &mut x[..d]);
-                let base = if in_box(&near_base, &x[..d]) { BASE } else { 0 };
-                *code = sign_code(f) | base;
-            });
+        let base = |v: &[i32]| {
+            let mut x = [0.0f64; MAX_DIM];
+            ctx.tri.vertex_coords(v, &mut x[..d]);
+            if in_box(&near_base, &x[..d]) {
+                BASE
+            } else {
+                0
+            }
+        };
+        if on_device {
+            pairs.resize(2 * (end - start) * k, 0.0);
+            ctx.oracle.eval_certified(ctx.tri, &lattice, &mut pairs)?;
+            let bounds = &mut grid.bounds[start * k..end * k];
+            values
+                .par_iter_mut()
+                .zip(bounds.par_iter_mut())
+                .zip(pairs.par_chunks(2))
+                .for_each(|((v, e), p)| (*v, *e) = (p[0], p[1]));
+            grid.codes[start..end]
+                .par_iter_mut()
+                .zip(lattice.par_chunks(d))
+                .zip(values.par_chunks(k).zip(bounds.par_chunks(k)))
+                .for_each(|((code, v), (f, e))| *code = bounded_sign_code(f, e) | base(v));
+        } else {
+            ctx.oracle.eval_vertices(ctx.tri, &lattice, values)?;
+            grid.codes[start..end]
+                .par_iter_mut()
+                .zip(lattice.par_chunks(d))
+                .zip(values.par_chunks(k))
+                .for_each(|((code, v), f)| *code = sign_code(f) | base(v));
+        }
     }
     Ok(grid)
 }

@@ -12,6 +12,7 @@
 use rayon::prelude::*;
 
 pub mod candidates;
+pub mod device_values;
 mod grid;
 
 pub use candidates::Candidates;
@@ -34,12 +35,17 @@ const TARGET_CANDIDATES: usize = 1 << 20;
 /// Fewest and most vertices (cube bases) per batch.
 const BATCH_RANGE: (usize, usize) = (1 << 12, 1 << 20);
 
-/// Scans the box; returns S (keys in sorted order, W words each) and counters. Interrupted
-/// (Ctrl-C) between batches, it returns what it found so far, with `stopped` set.
-pub(crate) fn scan<const W: usize>(
-    ctx: &TraceContext,
-    bbox: &[[f64; 2]],
-) -> Result<(Table<W>, TraceStats)> {
+/// What a scan found: S (keys in sorted order), counters, and with device values the CPU's
+/// values it computed (lattice coordinates, rows of d, and values, rows of k).
+pub(crate) struct Scanned<const W: usize> {
+    pub table: Table<W>,
+    pub stats: TraceStats,
+    pub cpu_values: Option<(Vec<i32>, Vec<f64>)>,
+}
+
+/// Scans the box. Interrupted (Ctrl-C) between batches, it returns what it found so far,
+/// with `stopped` set.
+pub(crate) fn scan<const W: usize>(ctx: &TraceContext, bbox: &[[f64; 2]]) -> Result<Scanned<W>> {
     let k = ctx.k;
     let grid = match grid::build(ctx, bbox) {
         // Interrupted while f is evaluated on the grid: nothing found yet, kept as such.
@@ -48,12 +54,20 @@ pub(crate) fn scan<const W: usize>(
                 stopped: Some(StopReason::Interrupted),
                 ..TraceStats::default()
             };
-            return Ok((Table::fixed(), stats));
+            return Ok(Scanned {
+                table: Table::fixed(),
+                stats,
+                cpu_values: None,
+            });
         }
         g => g?,
     };
+    let on_device = ctx.oracle.certified_values();
+    let mut cpu_values = on_device.then(device_values::CpuValues::default);
     let mut stats = TraceStats {
         vertices: grid.len() as u64,
+        device_vertex_evaluations: if on_device { grid.len() as u64 } else { 0 },
+        cpu_vertex_evaluations: if on_device { 0 } else { grid.len() as u64 },
         ..TraceStats::default()
     };
     let mut found: Vec<Key<W>> = Vec::new();
@@ -83,7 +97,16 @@ pub(crate) fn scan<const W: usize>(
         // the pool). No lock is held across either side (see `GpuOracle`'s buffer pools).
         let (ahead, decided) = rayon::join(
             || (!next.is_empty()).then(|| ctx.oracle.scan_candidates(grid, next)),
-            || decide_batch(ctx, grid, &cands, &mut stats, &mut found),
+            || {
+                decide_batch(
+                    ctx,
+                    grid,
+                    &cands,
+                    cpu_values.as_mut(),
+                    &mut stats,
+                    &mut found,
+                )
+            },
         );
         decided?;
         batch = ahead.transpose()?;
@@ -93,15 +116,21 @@ pub(crate) fn scan<const W: usize>(
     for key in &found {
         table.insert(key)?;
     }
-    Ok((table, stats))
+    Ok(Scanned {
+        table,
+        stats,
+        cpu_values: cpu_values.map(|c| c.into_lattice(&grid)),
+    })
 }
 
-/// Decides the candidates `cands` of the grid and appends the keys of the crossed ones whose
-/// point lies in the domain to `found`.
+/// Decides the candidates `cands` of the grid (of device values where `cpu_values` is
+/// given: [`device_values`]) and appends the keys of the crossed ones whose point lies in
+/// the domain to `found`.
 fn decide_batch<const W: usize>(
     ctx: &TraceContext,
     grid: &ScanGrid,
     cands: &Candidates,
+    cpu_values: Option<&mut device_values::CpuValues>,
     stats: &mut TraceStats,
     found: &mut Vec<Key<W>>,
 ) -> Result<()> {
@@ -110,15 +139,22 @@ fn decide_batch<const W: usize>(
     let m = rows.len() / (k + 1);
     let mut status = vec![Status::Outside; m];
     let mut lambda = vec![0.0; m * (k + 1)];
-    stats.exact_decisions += ctx
-        .oracle
-        .decide(grid.values(), rows, &mut status, &mut lambda)?;
-    stats.oracle_calls += m as u64;
-    for s in &status {
-        match s {
-            Status::Degenerate => stats.degenerate += 1,
-            Status::NonFinite => stats.non_finite += 1,
-            _ => {}
+    if let Some(cpu) = cpu_values {
+        device_values::decide(ctx, grid, rows, cpu, stats, &mut status, &mut lambda)?;
+    } else {
+        let how = ctx
+            .oracle
+            .decide(grid.values(), rows, &mut status, &mut lambda)?;
+        stats.exact_decisions += how.exact;
+        stats.oracle_calls += m as u64;
+        stats.device_decisions += how.on_device;
+        stats.cpu_decisions += m as u64 - how.on_device;
+        for s in &status {
+            match s {
+                Status::Degenerate => stats.degenerate += 1,
+                Status::NonFinite => stats.non_finite += 1,
+                _ => {}
+            }
         }
     }
     let hits: Vec<Result<Option<Key<W>>>> = (0..m)
@@ -252,11 +288,14 @@ fn exhaustive_with<const W: usize>(ctx: TraceContext) -> Result<Sample> {
     let start = Instant::now();
     let bbox = ctx.domain.bbox.expect("checked by exhaustive()");
     let codec = ctx.codec;
-    let (table, scan_stats) = scan::<W>(&ctx, bbox)?;
-    let components = count_components(&codec, &table)?;
+    let scanned = scan::<W>(&ctx, bbox)?;
+    let components = count_components(&codec, &scanned.table)?;
     let mut engine: Engine<W> = Engine::new(ctx);
-    engine.s = table;
-    engine.stats = scan_stats;
+    engine.s = scanned.table;
+    engine.stats = scanned.stats;
+    if let Some((lattice, values)) = &scanned.cpu_values {
+        engine.seed_vertices(lattice, values)?;
+    }
     engine.complete_rim()?;
     let mut stats = engine.stats.clone();
     stats.components = components;

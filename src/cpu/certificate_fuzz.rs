@@ -1,0 +1,244 @@
+//! The certificate ([`super::certificate`]) against the exact decision, on the adversarial
+//! inputs of [`super::solve_adversarial`] (nearly singular, nearly tied, exact ties, zeros,
+//! wild exponents) for k = 1..=8: a certified verdict must be the exact verdict of every
+//! matrix within the bounds, in f64 and in f32, with bounds of every size from none to
+//! most of the value. It must also decide nearly all ordinary simplices.
+
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use rayon::prelude::*;
+
+use super::certificate::{pack_rows, CertifiedSolver, CROSSED, OUTSIDE, UNCERTAIN};
+use super::solve::{exact_decision, scaled_rows, Status};
+use super::solve_adversarial::{values, Kind, KINDS};
+use crate::expr::certified::DeviceReal;
+
+/// How the bounds of one batch are drawn.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Bounds {
+    /// No bounds: L is exact (the CPU fast path's case), f64 only.
+    None,
+    /// Zero bounds through [`pack_rows`]: only the rounding to R.
+    Zero,
+    /// Per entry 0, or |v| 2^-r plus 2^-s, r in 4..=52, s in 20..=1074.
+    Random,
+}
+
+/// What one batch saw.
+#[derive(Clone, Copy, Debug, Default)]
+struct Tally {
+    cases: usize,
+    uncertain: usize,
+    crossed: usize,
+    /// Cases where the signs of the computed x alone give a verdict other than the exact
+    /// one: the batch reaches the margins (the certificate had to say uncertain there).
+    naive_wrong: usize,
+}
+
+impl Tally {
+    fn add(self, o: Tally) -> Tally {
+        Tally {
+            cases: self.cases + o.cases,
+            uncertain: self.uncertain + o.uncertain,
+            crossed: self.crossed + o.crossed,
+            naive_wrong: self.naive_wrong + o.naive_wrong,
+        }
+    }
+}
+
+/// Rows 1..=k of L from `v` (k + 1 rows of k), as the solve takes them: `l` and `e` n x n
+/// with row 0 ones and zeros. With `bounds`, through [`pack_rows`] in R; without, scaled
+/// by powers of two (exact) and E = 0.
+fn build<R: DeviceReal>(
+    k: usize,
+    v: &[f64],
+    bound: Option<&[f64]>,
+    l: &mut [R],
+    e: &mut [R],
+) -> bool {
+    let n = k + 1;
+    let (mut lw, mut ew) = (vec![0.0; k * n], vec![0.0; k * n]);
+    match bound {
+        Some(b) => {
+            if !pack_rows::<R>(
+                k,
+                |j, c| v[j * k + c],
+                |j, c| b[j * k + c],
+                &mut lw,
+                &mut ew,
+            ) {
+                return false;
+            }
+        }
+        None => scaled_rows(k, |j, c| v[j * k + c], &mut lw),
+    }
+    for j in 0..n {
+        l[j] = R::of(1.0);
+        e[j] = R::of(0.0);
+    }
+    for i in 0..k * n {
+        l[n + i] = R::of(lw[i]);
+        e[n + i] = R::of(ew[i]);
+    }
+    true
+}
+
+/// A matrix within the bounds: v + t b entry by entry, t = `corner` signs or uniform in
+/// (-1, 1), kept at v where rounding would leave the bound.
+fn within(v: &[f64], b: &[f64], corner: bool, rng: &mut ChaCha8Rng) -> Vec<f64> {
+    v.iter()
+        .zip(b)
+        .map(|(&x, &e)| {
+            let t: f64 = if corner {
+                if rng.random_bool(0.5) {
+                    1.0
+                } else {
+                    -1.0
+                }
+            } else {
+                rng.random_range(-1.0..1.0)
+            };
+            let y = x + t * e;
+            if (y - x).abs() <= e && y.is_finite() {
+                y
+            } else {
+                x
+            }
+        })
+        .collect()
+}
+
+/// `cases` simplices of `kind`, each certified in R and checked against the exact decision
+/// of the values themselves and (with bounds) of two matrices within the bounds.
+fn run<R: DeviceReal + Send>(
+    k: usize,
+    kind: Kind,
+    bounds: Bounds,
+    cases: usize,
+    seed: u64,
+) -> Tally {
+    let n = k + 1;
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let mut solver = CertifiedSolver::<R>::new(k);
+    let (mut l, mut e) = (vec![R::of(0.0); n * n], vec![R::of(0.0); n * n]);
+    let mut x = vec![R::of(0.0); n];
+    let mut exact_l = vec![0.0; n];
+    let mut tally = Tally::default();
+    for case in 0..cases {
+        let v = values(kind, k, &mut rng);
+        let b: Option<Vec<f64>> = match bounds {
+            Bounds::None => None,
+            Bounds::Zero => Some(vec![0.0; v.len()]),
+            Bounds::Random => Some(
+                v.iter()
+                    .map(|&x| {
+                        if rng.random_range(0..4) == 0 {
+                            0.0
+                        } else {
+                            let r = rng.random_range(4..=52) as f64;
+                            let s = rng.random_range(20..=1074) as f64;
+                            x.abs() * (-r).exp2() + (-s).exp2()
+                        }
+                    })
+                    .collect(),
+            ),
+        };
+        let verdict = if build::<R>(k, &v, b.as_deref(), &mut l, &mut e) {
+            solver.solve(&l, &e, &mut x)
+        } else {
+            UNCERTAIN
+        };
+        let want = exact_decision(&v, k, &mut exact_l);
+        let naive = if x.iter().all(|&xi| xi > R::of(0.0)) {
+            Status::Crossed
+        } else {
+            Status::Outside
+        };
+        tally.cases += 1;
+        tally.crossed += (want == Status::Crossed) as usize;
+        tally.naive_wrong += (naive.crossed() != want.crossed()) as usize;
+        tally.uncertain += (verdict == UNCERTAIN) as usize;
+        let mut check = |w: &[f64], what: &str| {
+            let got = exact_decision(w, k, &mut exact_l);
+            let ok = match verdict {
+                CROSSED => got == Status::Crossed,
+                OUTSIDE => got == Status::Outside,
+                _ => true,
+            };
+            assert!(
+                ok,
+                "k = {k}, {kind:?}, {bounds:?}, case {case}: certified {verdict}, exact \
+                 {got:?} for {what} {w:?} (values {v:?}, bounds {b:?})"
+            );
+        };
+        check(&v, "the values");
+        if let Some(b) = &b {
+            check(&within(&v, b, true, &mut rng), "a corner");
+            check(&within(&v, b, false, &mut rng), "a point");
+        }
+    }
+    tally
+}
+
+/// Every kind for k = 1..=`max_k`, `cases` each, in parallel: the tally per kind.
+fn sweep<R: DeviceReal + Send>(max_k: usize, bounds: Bounds, cases: usize) -> Vec<Tally> {
+    let jobs: Vec<(usize, usize)> = (1..=max_k)
+        .flat_map(|k| (0..KINDS.len()).map(move |i| (k, i)))
+        .collect();
+    let tallies: Vec<(usize, Tally)> = jobs
+        .par_iter()
+        .map(|&(k, i)| {
+            let seed = (k * 1000 + i * 10 + bounds as usize) as u64;
+            (i, run::<R>(k, KINDS[i], bounds, cases, seed))
+        })
+        .collect();
+    let mut by_kind = vec![Tally::default(); KINDS.len()];
+    for (i, t) in tallies {
+        by_kind[i] = by_kind[i].add(t);
+    }
+    by_kind
+}
+
+/// The batches reach the margins (a naive verdict is wrong somewhere, so the certificate
+/// had to refuse there) and every kind crosses.
+fn assert_reaches_margins(by_kind: &[Tally]) {
+    for (kind, t) in KINDS.iter().zip(by_kind) {
+        assert!(t.crossed > 50, "{kind:?}: {t:?}");
+    }
+    let wrong: usize = by_kind.iter().map(|t| t.naive_wrong).sum();
+    assert!(wrong > 100, "no batch reached the margins: {by_kind:?}");
+}
+
+#[test]
+fn exact_values_certified_in_f64_are_the_exact_decision() {
+    let by_kind = sweep::<f64>(8, Bounds::None, 1_000);
+    assert_reaches_margins(&by_kind);
+}
+
+#[test]
+fn bounded_values_certified_in_f64_hold_for_every_matrix_within_the_bounds() {
+    let by_kind = sweep::<f64>(8, Bounds::Random, 500);
+    assert_reaches_margins(&by_kind);
+}
+
+#[test]
+fn bounded_values_certified_in_f32_hold_for_every_matrix_within_the_bounds() {
+    let by_kind = sweep::<f32>(8, Bounds::Random, 500);
+    assert_reaches_margins(&by_kind);
+}
+
+#[test]
+fn ordinary_simplices_are_certified() {
+    // Uniform values and scaled components: nearly all must be decided (a certificate
+    // that refuses everything is sound but fails here), in f64 exact and in f32 rounded.
+    for k in 1..=8 {
+        for kind in [Kind::Uniform, Kind::Scales] {
+            let cases = 2_000;
+            let t = run::<f64>(k, kind, Bounds::None, cases, 7 + k as u64);
+            assert!(t.crossed > 0, "k = {k}, {kind:?}");
+            assert!(t.uncertain * 100 <= cases, "k = {k}, {kind:?}, f64: {t:?}");
+            let t = run::<f32>(k, kind, Bounds::Zero, cases, 7 + k as u64);
+            assert!(t.uncertain * 20 <= cases, "k = {k}, {kind:?}, f32: {t:?}");
+        }
+    }
+}
