@@ -210,6 +210,11 @@ fn output_flags_are_checked_before_tracing() {
         ),
         (&["--precision", "f32"], "--precision"),
         (&["--level-slice", "100"], "--level-slice"),
+        (&["--device-values"], "the CPU backend"),
+        (
+            &["--device-values", "--backend", "auto"],
+            "applies to exhaustive scans",
+        ),
         (&["--out", "-", "--format", "ply"], "standard output"),
         (&["--out", "-", "--out", "-"], "twice"),
         (

@@ -101,6 +101,13 @@ pub(super) fn plan_outputs(args: &TraceArgs, p: &Problem) -> Result<Plan> {
             }
         }
     }
+    if args.device_values && !args.exhaustive {
+        return Err(Error::Spec(
+            "--device-values applies to exhaustive scans (a trace takes f's values from the \
+             CPU): add --exhaustive, or leave --device-values out"
+                .into(),
+        ));
+    }
     // Files: each absent or a regular file, and no two the same file.
     let mut files: Vec<(String, &Path, FileId)> = Vec::new();
     let named = outs

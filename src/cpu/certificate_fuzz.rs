@@ -9,7 +9,7 @@ use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
 
 use super::certificate::{pack_rows, CertifiedSolver, CROSSED, OUTSIDE, UNCERTAIN};
-use super::solve::{exact_decision, scaled_rows, Status};
+use super::solve::{exact_lambda_signs, scaled_rows};
 use super::solve_adversarial::{values, Kind, KINDS};
 use crate::expr::certified::DeviceReal;
 
@@ -122,7 +122,6 @@ fn run<R: DeviceReal + Send>(
     let mut solver = CertifiedSolver::<R>::new(k);
     let (mut l, mut e) = (vec![R::of(0.0); n * n], vec![R::of(0.0); n * n]);
     let mut x = vec![R::of(0.0); n];
-    let mut exact_l = vec![0.0; n];
     let mut tally = Tally::default();
     for case in 0..cases {
         let v = values(kind, k, &mut rng);
@@ -148,33 +147,38 @@ fn run<R: DeviceReal + Send>(
         } else {
             UNCERTAIN
         };
-        let want = exact_decision(&v, k, &mut exact_l);
-        let naive = if x.iter().all(|&xi| xi > R::of(0.0)) {
-            Status::Crossed
-        } else {
-            Status::Outside
-        };
+        // The exact signs of lambda (the certificate claims only strict ones: no tie rule).
+        let crossed =
+            |signs: &Option<Vec<i8>>| signs.as_ref().is_some_and(|s| s.iter().all(|&x| x == 1));
+        let outside = |signs: &Option<Vec<i8>>| signs.as_ref().is_some_and(|s| s.contains(&-1));
+        let want = exact_lambda_signs(&v, k);
+        let naive = x.iter().all(|&xi| xi > R::of(0.0));
         tally.cases += 1;
-        tally.crossed += (want == Status::Crossed) as usize;
-        tally.naive_wrong += (naive.crossed() != want.crossed()) as usize;
+        tally.crossed += crossed(&want) as usize;
+        tally.naive_wrong += (naive != crossed(&want)) as usize;
         tally.uncertain += (verdict == UNCERTAIN) as usize;
-        let mut check = |w: &[f64], what: &str| {
-            let got = exact_decision(w, k, &mut exact_l);
+        let check = |signs: Option<Vec<i8>>, w: &[f64], what: &str| {
             let ok = match verdict {
-                CROSSED => got == Status::Crossed,
-                OUTSIDE => got == Status::Outside,
+                CROSSED => crossed(&signs),
+                OUTSIDE => outside(&signs),
                 _ => true,
             };
             assert!(
                 ok,
                 "k = {k}, {kind:?}, {bounds:?}, case {case}: certified {verdict}, exact \
-                 {got:?} for {what} {w:?} (values {v:?}, bounds {b:?})"
+                 signs {signs:?} for {what} {w:?} (values {v:?}, bounds {b:?})"
             );
         };
-        check(&v, "the values");
+        check(want, &v, "the values");
         if let Some(b) = &b {
-            check(&within(&v, b, true, &mut rng), "a corner");
-            check(&within(&v, b, false, &mut rng), "a point");
+            for corner in [true, false] {
+                let w = within(&v, b, corner, &mut rng);
+                check(
+                    exact_lambda_signs(&w, k),
+                    &w,
+                    if corner { "a corner" } else { "a point" },
+                );
+            }
         }
     }
     tally
@@ -211,19 +215,19 @@ fn assert_reaches_margins(by_kind: &[Tally]) {
 
 #[test]
 fn exact_values_certified_in_f64_are_the_exact_decision() {
-    let by_kind = sweep::<f64>(8, Bounds::None, 1_000);
+    let by_kind = sweep::<f64>(8, Bounds::None, 4_000);
     assert_reaches_margins(&by_kind);
 }
 
 #[test]
 fn bounded_values_certified_in_f64_hold_for_every_matrix_within_the_bounds() {
-    let by_kind = sweep::<f64>(8, Bounds::Random, 500);
+    let by_kind = sweep::<f64>(8, Bounds::Random, 2_000);
     assert_reaches_margins(&by_kind);
 }
 
 #[test]
 fn bounded_values_certified_in_f32_hold_for_every_matrix_within_the_bounds() {
-    let by_kind = sweep::<f32>(8, Bounds::Random, 500);
+    let by_kind = sweep::<f32>(8, Bounds::Random, 2_000);
     assert_reaches_margins(&by_kind);
 }
 

@@ -273,8 +273,37 @@ pub(crate) fn pow2_inverse(v: f64) -> f64 {
 /// non-zero entry of row i of Y has the sign of D.
 pub fn exact_decision(values: &[f64], k: usize, lambda: &mut [f64]) -> Status {
     let n = k + 1;
-    let w = 2 * n;
-    // [L | I] in integers.
+    let Some((det, y)) = exact_solve(values, k, n) else {
+        return Status::Degenerate;
+    };
+    let positive = det.is_positive();
+    for i in 0..n {
+        match y[i * n..(i + 1) * n].iter().find(|v| !v.is_zero()) {
+            Some(v) if v.is_positive() == positive => {}
+            _ => return Status::Outside,
+        }
+    }
+    for i in 0..n {
+        lambda[i] = ratio_to_f64(&y[i * n], &det);
+    }
+    Status::Crossed
+}
+
+/// The exact signs of lambda = L^-1 e_1 (no tie rule): -1, 0 or 1 per entry, or `None`
+/// when L is singular. A cheaper reference than [`exact_decision`] (one right-hand side)
+/// for claims that hold strictly: crossed means every sign is 1.
+pub fn exact_lambda_signs(values: &[f64], k: usize) -> Option<Vec<i8>> {
+    let (det, y) = exact_solve(values, k, 1)?;
+    let s = |v: &BigInt| v.is_positive() as i8 - v.is_negative() as i8;
+    Some(y.iter().map(|v| s(v) * s(&det)).collect())
+}
+
+/// D = det(PL) and Y = D L^-1 [e_1 .. e_rhs] (n rows of `rhs`) in integers, with L's rows
+/// scaled by powers of two to integers; `None` when L is singular.
+fn exact_solve(values: &[f64], k: usize, rhs: usize) -> Option<(BigInt, Vec<BigInt>)> {
+    let n = k + 1;
+    let w = n + rhs;
+    // [L | e_1 .. e_rhs] in integers.
     let mut m: Vec<BigInt> = vec![BigInt::zero(); n * w];
     for j in 0..n {
         m[j] = BigInt::one();
@@ -291,15 +320,13 @@ pub fn exact_decision(values: &[f64], k: usize, lambda: &mut [f64]) -> Status {
             m[r * w + j] = BigInt::from(mant) << ((e - low) as usize);
         }
     }
-    for i in 0..n {
+    for i in 0..rhs {
         m[i * w + n + i] = BigInt::one();
     }
     // Forward elimination: after step c, m[r][t] for r > c is a (c+1)-minor of [L | I].
     let mut prev = BigInt::one();
     for c in 0..n {
-        let Some(p) = (c..n).find(|&r| !m[r * w + c].is_zero()) else {
-            return Status::Degenerate;
-        };
+        let p = (c..n).find(|&r| !m[r * w + c].is_zero())?;
         if p != c {
             for t in 0..w {
                 m.swap(p * w + t, c * w + t);
@@ -316,27 +343,17 @@ pub fn exact_decision(values: &[f64], k: usize, lambda: &mut [f64]) -> Status {
     }
     // Fraction-free back substitution: y = D x for every right-hand side.
     let det = prev;
-    let mut y: Vec<BigInt> = vec![BigInt::zero(); n * n];
-    for t in 0..n {
+    let mut y: Vec<BigInt> = vec![BigInt::zero(); n * rhs];
+    for t in 0..rhs {
         for i in (0..n).rev() {
             let mut acc = &det * &m[i * w + n + t];
             for j in i + 1..n {
-                acc -= &m[i * w + j] * &y[j * n + t];
+                acc -= &m[i * w + j] * &y[j * rhs + t];
             }
-            y[i * n + t] = acc / &m[i * w + i];
+            y[i * rhs + t] = acc / &m[i * w + i];
         }
     }
-    let positive = det.is_positive();
-    for i in 0..n {
-        match y[i * n..(i + 1) * n].iter().find(|v| !v.is_zero()) {
-            Some(v) if v.is_positive() == positive => {}
-            _ => return Status::Outside,
-        }
-    }
-    for i in 0..n {
-        lambda[i] = ratio_to_f64(&y[i * n], &det);
-    }
-    Status::Crossed
+    Some((det, y))
 }
 
 /// v = mantissa * 2^exponent exactly (v finite).
@@ -391,6 +408,50 @@ mod tests {
             }
         }
     }
+
+    #[test]
+    fn exact_lambda_signs_are_the_signs_of_the_exact_solution() {
+        use rand::{Rng, SeedableRng};
+        // Edges: lambda_1 = f0 / (f0 - f1), lambda_0 = 1 - lambda_1.
+        assert_eq!(exact_lambda_signs(&[-2.0, 2.0], 1), Some(vec![1, 1]));
+        assert_eq!(exact_lambda_signs(&[2.0, -6.0], 1), Some(vec![1, 1]));
+        assert_eq!(exact_lambda_signs(&[1.0, 2.0], 1), Some(vec![1, -1]));
+        assert_eq!(exact_lambda_signs(&[2.0, 1.0], 1), Some(vec![-1, 1]));
+        assert_eq!(exact_lambda_signs(&[0.0, 1.0], 1), Some(vec![1, 0]));
+        assert_eq!(exact_lambda_signs(&[3.0, 3.0], 1), None);
+        // Against the exact decision (strict signs: crossed; a negative one: outside) and
+        // against f64 lambda away from 0, for k = 1..=5.
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(11);
+        let mut lambda = [0.0; 6];
+        for k in 1..=5 {
+            for _ in 0..400 {
+                let v: Vec<f64> = (0..(k + 1) * k)
+                    .map(|_| rng.random_range(-1.0..1.0))
+                    .collect();
+                let signs = exact_lambda_signs(&v, k).expect("a random L is regular");
+                let exact = exact_decision(&v, k, &mut lambda);
+                if signs.iter().all(|&s| s == 1) {
+                    assert_eq!(exact, Status::Crossed, "{v:?}");
+                } else if signs.contains(&-1) {
+                    assert_eq!(exact, Status::Outside, "{v:?}");
+                }
+                let mut x = vec![0.0; k + 1];
+                let v = &v;
+                let l: Vec<f64> = (0..=k)
+                    .flat_map(|r| (0..=k).map(move |j| if r == 0 { 1.0 } else { v[j * k + r - 1] }))
+                    .collect();
+                let (mut a, mut inv) = (l, vec![0.0; (k + 1) * (k + 1)]);
+                assert!(invert(k + 1, &mut a, &mut inv));
+                for i in 0..=k {
+                    x[i] = inv[i * (k + 1)];
+                    if x[i].abs() > 1e-9 {
+                        assert_eq!(signs[i], x[i].signum() as i8, "k = {k}, {v:?}: {x:?}");
+                    }
+                }
+            }
+        }
+    }
+
     /// A random n x n matrix with a dominant diagonal, rows in any order.
     fn random_matrix(rng: &mut rand_chacha::ChaCha8Rng, n: usize) -> Vec<f64> {
         use rand::Rng;
