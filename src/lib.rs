@@ -26,6 +26,8 @@
 //! - [`expr`]: the equation language: parser, derivatives, batch evaluation, spec files and
 //!   presets.
 //! - [`trace`]: manifold tracing and the exhaustive scan, behind the [`trace::Oracle`] trait.
+//! - [`cpu`]: the CPU oracle and the a-posteriori certificate of its verdicts; [`emulate`]:
+//!   device floats that round as adversarially as the WGSL and Vulkan specifications allow.
 //! - `gpu` (feature `gpu`): the GPU oracle (wgpu, WGSL). [`complex`]: the cell complex and its
 //!   topology. [`export`]: files and pictures. [`report`]: the report's keys.
 //!
@@ -55,6 +57,7 @@
 pub mod bench;
 pub mod complex;
 pub mod cpu;
+pub mod emulate;
 pub mod error;
 pub mod export;
 pub mod expr;

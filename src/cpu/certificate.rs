@@ -14,7 +14,8 @@
 //! succeeds). With x = R e_1, C = I - R L* and r = e_1 - L* x:
 //!
 //! - |C| <= |fl(I - R L)| + gamma (I + |R| |L|) + |R| E, and if its largest row sum kappa is
-//!   below 1, L* is nonsingular (R L* = I - C is);
+//!   below 1, L* is nonsingular (R L* = I - C is); the row sums of the last two terms are
+//!   gamma (1 + |R| |L| 1) + |R| (E 1), so only the first costs O(n^3);
 //! - delta = L*^-1 e_1 - x solves (I - C) delta = R r, so
 //!   |delta| <= |R| |r| + |C| 1 ||delta||, ||delta|| <= ||R| |r|| / (1 - kappa),
 //!   and |r| <= |fl(e_1 - L x)| + gamma (e_1 + |L| |x|) + E |x|.
@@ -65,9 +66,15 @@ impl Margins {
         }
     }
 
-    /// The margins for type R.
+    /// The margins for type R in IEEE arithmetic (the CPU's).
     pub fn of<R: DeviceReal>(n: usize) -> Self {
         Margins::new(n, R::UNIT, R::MIN_NORMAL)
+    }
+
+    /// The margins for type R on any conforming device: at the unit the specifications
+    /// promise ([`DeviceReal::SPEC_UNIT`]), which for f64 is f32's.
+    pub fn device<R: DeviceReal>(n: usize) -> Self {
+        Margins::new(n, R::SPEC_UNIT, R::MIN_NORMAL)
     }
 }
 
@@ -96,7 +103,9 @@ impl<R: DeviceReal> In<R> {
 
 /// Gauss-Jordan inversion with partial pivoting of the n x n row-major `a` (destroyed) into
 /// `inv`, in R: false when a pivot is at most n ulps of the largest entry. The steps of the
-/// solve shaders (`shaders/gauss_jordan.wgsl`) and of the f64 fast path.
+/// solve shaders (`shaders/gauss_jordan.wgsl`) and of the f64 fast path. Inlined, so that a
+/// constant n unrolls.
+#[inline(always)]
 pub fn gauss_jordan<R: DeviceReal>(n: usize, a: &mut [R], inv: &mut [R]) -> bool {
     let zero = R::of(0.0);
     inv[..n * n].fill(zero);
@@ -152,6 +161,50 @@ pub fn gauss_jordan<R: DeviceReal>(n: usize, a: &mut [R], inv: &mut [R]) -> bool
 /// The certificate for the n x n matrix `l` (row 0 all ones), entry bounds `e` (row 0
 /// zero) and approximate inverse `inv`: [`CROSSED`], [`OUTSIDE`] or [`UNCERTAIN`].
 pub fn certify<R: DeviceReal>(n: usize, l: &[R], e: &[R], inv: &[R], margins: &Margins) -> u32 {
+    certify_steps::<R, true>(n, l, e, inv, margins)
+}
+
+/// The certificate for `l` itself (E = 0): the verdict of the exact matrix at hand, as the
+/// f64 fast path of [`crate::cpu::solve`] takes it. Inlined, so that a constant n unrolls.
+#[inline(always)]
+pub fn certify_exact<R: DeviceReal>(n: usize, l: &[R], inv: &[R], margins: &Margins) -> u32 {
+    certify_steps::<R, false>(n, l, &[], inv, margins)
+}
+
+/// [`certify`], with the terms of E left out when not `BOUNDED` (`e` is then not read). Its
+/// work space lives on the stack up to n = [`MAX_N`], on the heap above (the CPU fast path
+/// serves every k).
+#[inline(always)]
+fn certify_steps<R: DeviceReal, const BOUNDED: bool>(
+    n: usize,
+    l: &[R],
+    e: &[R],
+    inv: &[R],
+    margins: &Margins,
+) -> u32 {
+    if n <= MAX_N {
+        let mut work = [R::of(0.0); 5 * MAX_N];
+        certify_in::<R, BOUNDED>(n, l, e, inv, margins, &mut work)
+    } else {
+        let mut work = vec![R::of(0.0); 5 * n];
+        certify_in::<R, BOUNDED>(n, l, e, inv, margins, &mut work)
+    }
+}
+
+/// [`certify_steps`] with its work space `work` (at least 5 n entries).
+#[inline(always)]
+fn certify_in<R: DeviceReal, const BOUNDED: bool>(
+    n: usize,
+    l: &[R],
+    e: &[R],
+    inv: &[R],
+    margins: &Margins,
+    work: &mut [R],
+) -> u32 {
+    let (rho, work) = work.split_at_mut(n);
+    let (s, work) = work.split_at_mut(n);
+    let (se, work) = work.split_at_mut(n);
+    let (kappa, z) = work.split_at_mut(n);
     let m = In::<R>::new(margins);
     let zero = R::of(0.0);
     let one = R::of(1.0);
@@ -159,33 +212,52 @@ pub fn certify<R: DeviceReal>(n: usize, l: &[R], e: &[R], inv: &[R], margins: &M
     let delta = |i: usize, j: usize| if i == j { one } else { zero };
     let x = |j: usize| inv[j * n];
     // rho >= |e_1 - L* x|.
-    let mut rho = [zero; MAX_N];
     for i in 0..n {
         let (mut acc, mut mag, mut eb) = (delta(i, 0), delta(i, 0), zero);
         for j in 0..n {
             let (lij, xj) = (l[i * n + j], x(j));
             acc = acc.sub(lij.mul(xj));
             mag = mag.add(lij.abs().mul(xj.abs()));
-            eb = eb.add(e[i * n + j].mul(xj.abs()));
+            if BOUNDED {
+                eb = eb.add(e[i * n + j].mul(xj.abs()));
+            }
         }
         rho[i] = m.up(acc.abs().add(m.gamma.mul(mag)).add(eb));
     }
-    // kappa_i >= row sums of |I - R L*|, z >= |R| rho.
-    let mut kappa = [zero; MAX_N];
-    let mut z = [zero; MAX_N];
+    // kappa_i >= row sums of |I - R L*|: of |fl(I - R L)| entry by entry, and of the other
+    // two terms through the row sums s = |L| 1 and se = E 1 (the row sum of |R| |L| is
+    // |R| s): O(n^2) instead of O(n^3). z >= |R| rho.
+    // Both rounded up: they are factors below.
+    for t in 0..n {
+        let (mut st, mut set) = (zero, zero);
+        for j in 0..n {
+            st = st.add(l[t * n + j].abs());
+            if BOUNDED {
+                set = set.add(e[t * n + j]);
+            }
+        }
+        s[t] = m.up(st);
+        se[t] = m.up(set);
+    }
     let mut zmax = zero;
     for i in 0..n {
-        let mut row = zero;
+        let mut computed = zero;
         for j in 0..n {
-            let (mut acc, mut mag, mut eb) = (delta(i, j), delta(i, j), zero);
+            let mut acc = delta(i, j);
             for t in 0..n {
-                let (rit, ltj) = (inv[i * n + t], l[t * n + j]);
-                acc = acc.sub(rit.mul(ltj));
-                mag = mag.add(rit.abs().mul(ltj.abs()));
-                eb = eb.add(rit.abs().mul(e[t * n + j]));
+                acc = acc.sub(inv[i * n + t].mul(l[t * n + j]));
             }
-            row = row.add(m.up(acc.abs().add(m.gamma.mul(mag)).add(eb)));
+            computed = computed.add(acc.abs());
         }
+        let (mut mag, mut eb) = (one, zero);
+        for t in 0..n {
+            let rit = inv[i * n + t].abs();
+            mag = mag.add(rit.mul(s[t]));
+            if BOUNDED {
+                eb = eb.add(rit.mul(se[t]));
+            }
+        }
+        let row = m.up(computed).add(m.gamma.mul(m.up(mag))).add(m.up(eb));
         kappa[i] = m.up(row);
         if !(kappa[i] <= R::of(MAX_CONTRACTION)) {
             return UNCERTAIN;
@@ -231,13 +303,19 @@ pub struct CertifiedSolver<R> {
 }
 
 impl<R: DeviceReal> CertifiedSolver<R> {
-    /// Work space for k-simplices (n = k + 1 <= [`MAX_N`]).
+    /// Work space for k-simplices (n = k + 1 <= [`MAX_N`]), with the margins of any
+    /// conforming device ([`Margins::device`]): the twin of the certified solve shader.
     pub fn new(k: usize) -> Self {
+        Self::with_margins(k, Margins::device::<R>(k + 1))
+    }
+
+    /// [`CertifiedSolver::new`] with other margins.
+    pub fn with_margins(k: usize, margins: Margins) -> Self {
         let n = k + 1;
         assert!(n <= MAX_N, "the certificate holds k <= {}", MAX_N - 1);
         CertifiedSolver {
             n,
-            margins: Margins::of::<R>(n),
+            margins,
             a: vec![R::of(0.0); n * n],
             inv: vec![R::of(0.0); n * n],
         }

@@ -21,6 +21,8 @@ pub(crate) use unrolled;
 pub mod certificate;
 #[cfg(test)]
 mod certificate_fuzz;
+#[cfg(test)]
+mod fast_path_fuzz;
 pub mod pivot;
 pub mod solve;
 #[cfg(test)]

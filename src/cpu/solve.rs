@@ -11,13 +11,17 @@
 //! as if f were shifted by (eps, eps^2, .., eps^k). With that rule every (k+1)-simplex has 0
 //! or 2 crossed facets, even when f vanishes exactly at lattice vertices.
 //!
-//! Fast path: Gauss-Jordan inversion with partial pivoting and a first-order forward error
-//! bound per lambda_i; a decision is taken when every sign it needs is outside its bound.
-//! Otherwise the same test runs in exact rational arithmetic on the f64 values, so that the
-//! decision is always the exact one for the values given.
+//! Fast path: Gauss-Jordan inversion with partial pivoting in f64, then the a-posteriori
+//! certificate of [`super::certificate`] with no entry bounds: a proof, from the residual and
+//! a bound on ||I - R L|| computed with directed margins, that every lambda_i has the sign
+//! the computed one has. A decision is taken when every sign it needs is proven. Otherwise
+//! the same test runs in exact rational arithmetic on the f64 values, so that the decision
+//! is always the exact one for the values given.
 
 use num_bigint::BigInt;
 use num_traits::{Float, One, Signed, ToPrimitive, Zero};
+
+use super::certificate::{certify_exact, gauss_jordan, Margins, CROSSED, OUTSIDE};
 
 /// The verdict on one k-simplex.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -57,14 +61,8 @@ pub struct Decider {
     l0: Vec<f64>,
     a: Vec<f64>,
     inv: Vec<f64>,
-    abs_l: Vec<f64>,
+    margins: Margins,
 }
-
-/// Safety factor on the first-order error bound, per unit of n (the solve shader's too).
-pub(crate) const BOUND_FACTOR: f64 = 16.0;
-/// Largest unit * cond(L) for which the first-order bound is trusted (the solve shader's
-/// too).
-pub(crate) const MAX_RELATIVE_BOUND: f64 = 0.125;
 
 impl Decider {
     /// Work space for k-simplices (k equations).
@@ -75,7 +73,7 @@ impl Decider {
             l0: vec![0.0; n * n],
             a: vec![0.0; n * n],
             inv: vec![0.0; n * n],
-            abs_l: vec![0.0; n],
+            margins: Margins::of::<f64>(n),
         }
     }
 
@@ -101,8 +99,8 @@ impl Decider {
         }
     }
 
-    /// The fast path alone (no NaN or sign filter first): Gauss-Jordan in f64 with the error
-    /// bound, writing lambda; `None` when a needed sign is not certain. The GPU's solve
+    /// The fast path alone (no NaN or sign filter first): Gauss-Jordan in f64 and the
+    /// certificate, writing lambda; `None` when a needed sign is not proven. The GPU's solve
     /// shader is its twin.
     pub fn fast_path(&mut self, values: &[f64], lambda: &mut [f64]) -> Option<Status> {
         super::unrolled!(self.n, |n| self.fast_path_steps(n, values, lambda))
@@ -121,101 +119,27 @@ impl Decider {
         l0[..n].fill(1.0);
         scaled_rows(k, |j, c| values[j * k + c], &mut l0[n..]);
         a.copy_from_slice(l0);
-        if !invert(n, a, inv) {
+        if !gauss_jordan(n, a, inv) {
             return None;
         }
         for i in 0..n {
             lambda[i] = inv[i * n];
         }
-        // Row sums of |L|, then Skeel's condition numbers c_i = (|L^-1| |L| 1)_i. The error of
-        // lambda_i is bounded by unit * c_i * max|lambda| (normwise in lambda: Gauss-Jordan is
-        // not componentwise stable), and only while unit * max c_i is small; otherwise the
-        // exact path decides.
-        let abs_l = &mut self.abs_l;
-        for r in 0..n {
-            abs_l[r] = (0..n).map(|t| l0[r * n + t].abs()).sum();
+        // The a-posteriori certificate with E = 0: a proof for L itself, whatever the
+        // rounding of the inversion.
+        match certify_exact(n, l0, inv, &self.margins) {
+            CROSSED => Some(Status::Crossed),
+            OUTSIDE => Some(Status::Outside),
+            _ => None,
         }
-        let unit = BOUND_FACTOR * n as f64 * f64::EPSILON;
-        let mut lmax: f64 = 0.0;
-        for &l in lambda[..n].iter() {
-            if !l.is_finite() {
-                return None;
-            }
-            lmax = lmax.max(l.abs());
-        }
-        let mut all_positive = true;
-        for i in 0..n {
-            let c: f64 = (0..n).map(|j| inv[i * n + j].abs() * abs_l[j]).sum();
-            if unit * c > MAX_RELATIVE_BOUND || c.is_nan() {
-                return None;
-            }
-            let li = lambda[i];
-            let err = unit * c * lmax;
-            if li < -err {
-                // Row i of L^-1 starts with a certainly negative entry.
-                return Some(Status::Outside);
-            }
-            all_positive &= li > err;
-        }
-        all_positive.then_some(Status::Crossed)
     }
 }
 
 /// Gauss-Jordan inversion with partial pivoting of the n x n row-major matrix `a`
-/// (destroyed) into `inv`; false when a pivot is below n ulps of the largest entry. The
-/// GPU's solve shader runs the same steps.
+/// (destroyed) into `inv` in f64 ([`gauss_jordan`], unrolled for small n); false when a
+/// pivot is below n ulps of the largest entry.
 pub(crate) fn invert(n: usize, a: &mut [f64], inv: &mut [f64]) -> bool {
-    super::unrolled!(n, |m| invert_steps(m, &mut a[..m * m], &mut inv[..m * m]))
-}
-
-#[inline(always)]
-fn invert_steps(n: usize, a: &mut [f64], inv: &mut [f64]) -> bool {
-    inv.fill(0.0);
-    for i in 0..n {
-        inv[i * n + i] = 1.0;
-    }
-    let scale = a.iter().fold(0.0f64, |m, v| m.max(v.abs()));
-    let tiny = scale * f64::EPSILON * n as f64;
-    for c in 0..n {
-        let mut p = c;
-        for r in c + 1..n {
-            if a[r * n + c].abs() > a[p * n + c].abs() {
-                p = r;
-            }
-        }
-        if a[p * n + c].abs() <= tiny {
-            return false;
-        }
-        if p != c {
-            for t in 0..n {
-                a.swap(p * n + t, c * n + t);
-                inv.swap(p * n + t, c * n + t);
-            }
-        }
-        let r_piv = 1.0 / a[c * n + c];
-        for t in c..n {
-            a[c * n + t] *= r_piv;
-        }
-        for t in 0..n {
-            inv[c * n + t] *= r_piv;
-        }
-        for r in 0..n {
-            if r == c {
-                continue;
-            }
-            let f = a[r * n + c];
-            if f == 0.0 {
-                continue;
-            }
-            for t in c..n {
-                a[r * n + t] -= f * a[c * n + t];
-            }
-            for t in 0..n {
-                inv[r * n + t] -= f * inv[c * n + t];
-            }
-        }
-    }
-    true
+    super::unrolled!(n, |m| gauss_jordan(m, &mut a[..m * m], &mut inv[..m * m]))
 }
 
 /// The verdict of the cheap filters that run before any solve, with F_j[c] = `val(j, c)`:
@@ -234,7 +158,7 @@ pub(crate) fn filter_verdict(k: usize, val: impl Fn(usize, usize) -> f64) -> Opt
 /// Rows 1..=k of L (row c + 1 holds component c at the k + 1 vertices) into `out`, each
 /// scaled by a power of two near 1/max|row|: exact, and it changes neither lambda nor the
 /// signs of L^-1's entries. Shared by the CPU fast path and the GPU host side.
-pub(crate) fn scaled_rows(k: usize, val: impl Fn(usize, usize) -> f64, out: &mut [f64]) {
+pub fn scaled_rows(k: usize, val: impl Fn(usize, usize) -> f64, out: &mut [f64]) {
     let n = k + 1;
     for c in 0..k {
         let big = (0..n).fold(0.0f64, |m, j| m.max(val(j, c).abs()));
@@ -650,25 +574,55 @@ mod tests {
         assert_eq!(l, [0.5, 0.5]);
         assert_eq!(d.fast_path(&[1.0, 3.0], &mut l), Some(Status::Outside));
         assert_eq!(d.fast_path(&[3.0, 1.0], &mut l), Some(Status::Outside));
-        // lambda_1 = 1e-17 is within rounding: not certified either way; 1e-10 is.
-        assert_eq!(d.fast_path(&[-1.0, 1e-17], &mut l), None);
-        assert_eq!(d.fast_path(&[1e-17, -1.0], &mut l), None);
-        assert_eq!(d.fast_path(&[-1.0, 1e-10], &mut l), Some(Status::Crossed));
-        assert_eq!(d.fast_path(&[-1.0, -1e-10], &mut l), Some(Status::Outside));
+        // lambda_0 = 1e-17 / (1 + 1e-17) is tiny, but here its residual is tiny too: the
+        // certificate proves its sign (a normwise bound could not). With the rows the other
+        // way round, R's large entry meets row 0's rounding, and the proof may fail; a
+        // verdict it gives is the exact one. An exact zero is left to the exact tie rule.
+        assert_eq!(d.fast_path(&[1e-17, -1.0], &mut l), Some(Status::Crossed));
+        assert_eq!(d.fast_path(&[-1e-17, -1.0], &mut l), Some(Status::Outside));
+        let mut exact = [0.0; 2];
+        for v in [
+            [-1.0, 1e-17],
+            [-1.0, -1e-17],
+            [1e-300, -1.0],
+            [-1.0, 1e-300],
+        ] {
+            if let Some(got) = d.fast_path(&v, &mut l) {
+                assert_eq!(got, exact_decision(&v, 1, &mut exact), "{v:?}");
+            }
+        }
+        assert_eq!(d.fast_path(&[0.0, 1.0], &mut l), None);
+        assert_eq!(d.fast_path(&[-1.0, 0.0], &mut l), None);
         assert_eq!(d.fast_path(&[0.0, 0.0], &mut l), None);
         assert_eq!(d.fast_path(&[1.0, 1.0], &mut l), None);
+        // Conditioned beyond the certificate (kappa > 1/2): no verdict.
+        let near = 1.0 + 2f64.powi(-52);
+        assert_eq!(d.fast_path(&[1.0, near], &mut l), None);
         // The decision says which path decided.
-        let got = d.decide(&[-1.0, 1e-17], &mut l);
+        let got = d.decide(&[0.0, 1.0], &mut l);
         assert_eq!((got.status, got.exact), (Status::Crossed, true));
-        let got = d.decide(&[-1.0, 1e-10], &mut l);
+        let got = d.decide(&[1e-17, -1.0], &mut l);
         assert_eq!((got.status, got.exact), (Status::Crossed, false));
         let got = d.decide(&[1.0, 2.0], &mut l);
         assert_eq!((got.status, got.exact), (Status::Outside, false));
         assert!(Status::Crossed.crossed() && !Status::Outside.crossed());
-        // Nearly singular in k = 2: the relative bound passes its cap, so no verdict.
+        // k = 2: the origin on an edge (lambda_2 = 0 exactly) is left to the tie rule; just
+        // off it, the certificate decides, as the exact test does.
         let mut d2 = Decider::new(2);
         let mut l2 = [0.0; 3];
-        let eps = 1e-15;
+        let mut exact = [0.0; 3];
+        assert_eq!(
+            d2.fast_path(&[-1.0, 0.0, 1.0, 0.0, 0.0, 1.0], &mut l2),
+            None
+        );
+        for y in [1e-12, -1e-12, 1e-6, -0.25] {
+            let v = [-1.0, y, 1.0, y, 0.0, 1.0];
+            let got = d2.fast_path(&v, &mut l2);
+            assert!(got.is_some(), "{v:?}");
+            assert_eq!(got, Some(exact_decision(&v, 2, &mut exact)), "{v:?}");
+        }
+        // Two columns a few ulps apart: too ill-conditioned for a proof.
+        let eps = 2f64.powi(-51);
         let v = [-1.0, -1.0, 1.0, 1.0 + eps, 1.0 + eps, 1.0];
         assert_eq!(d2.fast_path(&v, &mut l2), None);
         assert_eq!(

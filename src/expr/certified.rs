@@ -27,6 +27,12 @@ pub const U64: f64 = f64::EPSILON / 2.0;
 /// Unit roundoff of f32 (2^-24).
 pub const U32: f64 = f32::EPSILON as f64 / 2.0;
 
+/// The unit roundoff to assume of a conforming device's f64 `+ - *`: that of f32. Vulkan
+/// ("Precision and Operation of SPIR-V Instructions") promises double-precision operations
+/// only "at least the precision of single precision"; an error of up to one f32 ulp (2 of
+/// these units, rounding toward zero included) is what the margins built on it allow for.
+pub const DEVICE_F64_UNIT: f64 = U32;
+
 /// The CPU's claimed error for its library functions (sin, exp, pow, ...) in ulps: glibc
 /// documents at most 2 for each one isomesh calls; twice that is assumed.
 pub const CPU_FN_ULPS: f64 = 4.0;
@@ -144,8 +150,11 @@ pub trait DeviceReal: Copy + PartialOrd + std::fmt::Debug {
     fn wide(self) -> f64;
     /// The smallest value of this type at or above `x` (x itself in f64).
     fn of_up(x: f64) -> Self;
-    /// The unit roundoff of this type.
+    /// The unit roundoff of this type (IEEE arithmetic, as on the CPU).
     const UNIT: f64;
+    /// The unit roundoff the specifications promise for a device's `+ - *` in this type
+    /// (f32's also for f64: [`DEVICE_F64_UNIT`]).
+    const SPEC_UNIT: f64;
     /// The smallest positive normal value of this type.
     const MIN_NORMAL: f64;
     /// a + b.
@@ -173,7 +182,7 @@ pub trait DeviceReal: Copy + PartialOrd + std::fmt::Debug {
 }
 
 macro_rules! device_real {
-    ($t:ty) => {
+    ($t:ty, $spec:expr) => {
         impl DeviceReal for $t {
             fn of(x: f64) -> Self {
                 x as $t
@@ -194,6 +203,7 @@ macro_rules! device_real {
                 }
             }
             const UNIT: f64 = <$t>::EPSILON as f64 / 2.0;
+            const SPEC_UNIT: f64 = $spec;
             const MIN_NORMAL: f64 = <$t>::MIN_POSITIVE as f64;
             fn add(self, b: Self) -> Self {
                 self + b
@@ -231,8 +241,8 @@ macro_rules! device_real {
         }
     };
 }
-device_real!(f32);
-device_real!(f64);
+device_real!(f32, U32);
+device_real!(f64, DEVICE_F64_UNIT);
 
 /// A certified value: the device's value `v` and the bound `e` (see the module docs).
 #[derive(Clone, Copy, Debug, PartialEq)]

@@ -53,8 +53,12 @@ pub use solve_certified::{solve_certified_shader, SOLVE_CERTIFIED_WGSL};
 pub struct GpuStats {
     /// Simplices sent to the solve shader.
     pub solved: u64,
-    /// Of those, decided again on the CPU.
+    /// Of those, decided again on the CPU: every one the device did not certify outside.
     pub rechecked: u64,
+    /// Crossings the device certified and the CPU's exact decision rejected: a device
+    /// that broke the arithmetic the specifications promise (0 on a conforming one). The
+    /// CPU's decision is the one kept.
+    pub contradicted: u64,
     /// Seconds the host spent submitting to and waiting on the device, summed over the
     /// threads that used the oracle (the exhaustive scan's two stages overlap).
     pub gpu_s: f64,
@@ -93,6 +97,7 @@ pub struct GpuOracle<'f> {
     level_slice: AtomicUsize,
     solved: AtomicU64,
     rechecked: AtomicU64,
+    contradicted: AtomicU64,
     gpu_ns: AtomicU64,
     host_ns: AtomicU64,
     upload_ns: AtomicU64,
@@ -144,6 +149,7 @@ impl<'f> GpuOracle<'f> {
             level_slice: AtomicUsize::new(0),
             solved: AtomicU64::new(0),
             rechecked: AtomicU64::new(0),
+            contradicted: AtomicU64::new(0),
             gpu_ns: AtomicU64::new(0),
             host_ns: AtomicU64::new(0),
             upload_ns: AtomicU64::new(0),
@@ -172,6 +178,7 @@ impl<'f> GpuOracle<'f> {
         GpuStats {
             solved: self.solved.load(Ordering::Relaxed),
             rechecked: self.rechecked.load(Ordering::Relaxed),
+            contradicted: self.contradicted.load(Ordering::Relaxed),
             gpu_s: secs(&self.gpu_ns),
             host_s: secs(&self.host_ns),
             upload_s: secs(&self.upload_ns),
@@ -185,6 +192,7 @@ impl<'f> GpuOracle<'f> {
         for c in [
             &self.solved,
             &self.rechecked,
+            &self.contradicted,
             &self.gpu_ns,
             &self.host_ns,
             &self.upload_ns,

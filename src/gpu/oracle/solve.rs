@@ -1,7 +1,8 @@
 //! The solve stage (`shaders/solve.wgsl`): the intersection test's (k+1)x(k+1) solves, the
-//! twin of the CPU fast path [`Decider::fast_path`](crate::cpu::solve::Decider::fast_path).
-//! A decision batch goes through in pipelined chunks; what the shader's bound does not
-//! certify is decided again on the CPU.
+//! twin of the CPU fast path [`Decider::fast_path`](crate::cpu::solve::Decider::fast_path):
+//! Gauss-Jordan and the a-posteriori certificate, for every matrix within the rounding of
+//! the host's values to the device's precision. A decision batch goes through in pipelined
+//! chunks; what the shader does not certify is decided again on the CPU.
 
 use std::ops::Range;
 use std::sync::atomic::Ordering;
@@ -11,8 +12,10 @@ use rayon::prelude::*;
 
 use super::device::{add_time, Stage};
 use super::GpuOracle;
-use crate::cpu::solve::{filter_verdict, scaled_rows, Status, BOUND_FACTOR, MAX_RELATIVE_BOUND};
-use crate::error::Result;
+use crate::cpu::certificate::{Margins, BIG, MAX_CONTRACTION, MAX_N};
+use crate::cpu::solve::{filter_verdict, scaled_rows, Status};
+use crate::error::{Error, Result};
+use crate::expr::certified::DeviceReal;
 use crate::gpu::wgsl::{validate, Precision};
 use crate::trace::{CpuOracle, Decisions, Oracle};
 
@@ -20,34 +23,70 @@ use crate::trace::{CpuOracle, Decisions, Oracle};
 pub const SOLVE_WGSL: &str = include_str!("../../../shaders/solve.wgsl");
 /// Gauss-Jordan inversion, shared by both solve shaders.
 pub(super) const GAUSS_JORDAN_WGSL: &str = include_str!("../../../shaders/gauss_jordan.wgsl");
+/// The a-posteriori certificate, shared by both solve shaders.
+pub(super) const CERTIFY_WGSL: &str = include_str!("../../../shaders/certify.wgsl");
 /// Simplices per pipelined chunk of a decision batch.
 const PIPELINE_CHUNK: usize = 1 << 17;
 /// Shader verdicts.
 const CROSSED: u32 = 0;
 const OUTSIDE: u32 = 1;
 
-/// The solve shader for k-simplices in precision `p`, validated by naga.
+/// The solve shader for k-simplices in precision `p`, validated by naga: the certificate
+/// with entry bounds that cover the rounding of the host's f64 values to `p`.
 pub fn solve_shader(k: usize, p: Precision) -> Result<String> {
-    let n = k + 1;
-    let (eps, big) = match p {
-        Precision::F32 => ("1.1920929e-7f", "3.4028235e38f"),
-        Precision::F64 => ("2.220446049250313e-16lf", "1.7976931348623157e308lf"),
-    };
-    let lit = |v: f64| match p {
-        Precision::F32 => format!("{v:?}f"),
-        Precision::F64 => format!("{v:?}lf"),
+    // f32: |fl(v) - v| <= u |fl(v)|, plus a flushed subnormal (computed in the shader as
+    // 2u |v| + 2 MIN_NORMAL, which stays above that after its own rounding). f64: the
+    // values arrive exact, but for a device that flushes subnormal inputs.
+    let (unit, tiny) = match p {
+        Precision::F32 => (
+            2.0 * <f32 as DeviceReal>::UNIT,
+            2.0 * <f32 as DeviceReal>::MIN_NORMAL,
+        ),
+        Precision::F64 => (0.0, 2.0 * <f64 as DeviceReal>::MIN_NORMAL),
     };
     let src = format!(
-        "alias real = {ty};\nconst N: u32 = {n}u;\nconst NN: u32 = {nn}u;\nconst EPS: real = {eps};\n\
-         const BOUND: real = {bound};\nconst BIG: real = {big};\n\
-         const MAX_RELATIVE_BOUND: real = {rel};\n{GAUSS_JORDAN_WGSL}{SOLVE_WGSL}",
-        bound = lit(BOUND_FACTOR),
-        rel = lit(MAX_RELATIVE_BOUND),
-        ty = p.ty(),
-        nn = n * n
+        "{prelude}const ROUND_UNIT: real = {unit};\nconst ROUND_TINY: real = {tiny};\n\
+         {GAUSS_JORDAN_WGSL}{CERTIFY_WGSL}{SOLVE_WGSL}",
+        prelude = solve_prelude(k, p)?,
+        unit = p.literal(unit)?,
+        tiny = p.literal(tiny)?,
     );
     validate(&src, p)?;
     Ok(src)
+}
+
+/// The constants both solve shaders start with, for k-simplices in precision `p`: `real`,
+/// `N`, `NN`, `EPS` and the certificate's margins for any conforming device computing in p
+/// ([`Margins::device`]), rounded up.
+pub(super) fn solve_prelude(k: usize, p: Precision) -> Result<String> {
+    let n = k + 1;
+    if n > MAX_N {
+        return Err(Error::Gpu(format!(
+            "the solve shaders take k <= {} (k = {k})",
+            MAX_N - 1
+        )));
+    }
+    let (m, eps) = match p {
+        Precision::F32 => (Margins::device::<f32>(n), f32::EPSILON as f64),
+        Precision::F64 => (Margins::device::<f64>(n), f64::EPSILON),
+    };
+    let up = |v: f64| match p {
+        Precision::F32 => p.literal(f32::of_up(v) as f64),
+        Precision::F64 => p.literal(v),
+    };
+    Ok(format!(
+        "alias real = {ty};\nconst N: u32 = {n}u;\nconst NN: u32 = {nn}u;\nconst EPS: real = {eps};\n\
+         const GAMMA: real = {gamma};\nconst GROW: real = {grow};\nconst TINY: real = {tiny};\n\
+         const MAX_CONTRACTION: real = {maxc};\nconst BIG: real = {big};\n",
+        ty = p.ty(),
+        nn = n * n,
+        eps = p.literal(eps)?,
+        gamma = up(m.gamma)?,
+        grow = up(m.grow)?,
+        tiny = up(m.tiny)?,
+        maxc = p.literal(MAX_CONTRACTION)?,
+        big = p.literal(BIG)?,
+    ))
 }
 
 impl GpuOracle<'_> {
@@ -206,9 +245,11 @@ impl GpuOracle<'_> {
         (sent, bytes)
     }
 
-    /// Host side after the shader: keeps what the bound certifies and decides the rest of
-    /// `sent` on the CPU, in one gathered batch. Returns the count of exact decisions and of
-    /// those the device took.
+    /// Host side after the shader: keeps the certified misses and decides the rest of
+    /// `sent` on the CPU, in one gathered batch. The device's crossings are decided there too,
+    /// so that every lambda (and so every point) is the CPU's, whatever the device's
+    /// rounding; a crossing the CPU rejects is counted in [`GpuStats::contradicted`]
+    /// (super::GpuStats). Returns the count of exact decisions and of those the device took.
     fn settle(
         &self,
         values: &[f64],
@@ -220,9 +261,8 @@ impl GpuOracle<'_> {
     ) -> Result<Decisions> {
         let started = Instant::now();
         let n = self.k + 1;
-        let lam = self.decode_reals(&res[0]);
         let flags: Vec<u32> = bytemuck::pod_collect_to_vec(&res[1]);
-        let keep_crossed = self.precision == Precision::F64;
+        let mut claimed = Vec::new();
         let recheck: Vec<usize> = sent
             .iter()
             .enumerate()
@@ -231,10 +271,9 @@ impl GpuOracle<'_> {
                     status[i] = Status::Outside;
                     None
                 }
-                CROSSED if keep_crossed => {
-                    status[i] = Status::Crossed;
-                    lambda[i * n..(i + 1) * n].copy_from_slice(&lam[j * n..(j + 1) * n]);
-                    None
+                CROSSED => {
+                    claimed.push(i);
+                    Some(i)
                 }
                 _ => Some(i),
             })
@@ -258,6 +297,9 @@ impl GpuOracle<'_> {
                 lambda[i * n..(i + 1) * n].copy_from_slice(l);
             }
         }
+        let contradicted = claimed.iter().filter(|&&i| !status[i].crossed()).count();
+        self.contradicted
+            .fetch_add(contradicted as u64, Ordering::Relaxed);
         add_time(&self.host_ns, started);
         Ok(Decisions {
             exact: cpu.exact,

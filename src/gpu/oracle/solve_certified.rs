@@ -5,47 +5,21 @@
 use rayon::prelude::*;
 
 use super::device::{pipeline, Stage};
-use super::solve::GAUSS_JORDAN_WGSL;
+use super::solve::{solve_prelude, CERTIFY_WGSL, GAUSS_JORDAN_WGSL};
 use super::GpuOracle;
-use crate::cpu::certificate::{pack_rows, Margins, BIG, MAX_CONTRACTION, MAX_N, UNCERTAIN};
-use crate::error::{Error, Result};
-use crate::expr::certified::DeviceReal;
+use crate::cpu::certificate::{pack_rows, UNCERTAIN};
+use crate::error::Result;
 use crate::gpu::wgsl::{validate, Precision};
 
 /// The certified solve shader, before its prelude.
 pub const SOLVE_CERTIFIED_WGSL: &str = include_str!("../../../shaders/solve_certified.wgsl");
 
 /// The certified solve shader for k-simplices in precision `p`, validated by naga; its
-/// margins are [`Margins`] for p, rounded up.
+/// margins are [`Margins::device`](crate::cpu::certificate::Margins::device) for p, rounded up.
 pub fn solve_certified_shader(k: usize, p: Precision) -> Result<String> {
-    let n = k + 1;
-    if n > MAX_N {
-        return Err(Error::Gpu(format!(
-            "the certified solve takes k <= {} (k = {k})",
-            MAX_N - 1
-        )));
-    }
-    let (m, eps) = match p {
-        Precision::F32 => (Margins::of::<f32>(n), f32::EPSILON as f64),
-        Precision::F64 => (Margins::of::<f64>(n), f64::EPSILON),
-    };
-    let up = |v: f64| match p {
-        Precision::F32 => p.literal(f32::of_up(v) as f64),
-        Precision::F64 => p.literal(v),
-    };
     let src = format!(
-        "alias real = {ty};\nconst N: u32 = {n}u;\nconst NN: u32 = {nn}u;\nconst EPS: real = {eps};\n\
-         const GAMMA: real = {gamma};\nconst GROW: real = {grow};\nconst TINY: real = {tiny};\n\
-         const MAX_CONTRACTION: real = {maxc};\nconst BIG: real = {big};\n\
-         {GAUSS_JORDAN_WGSL}{SOLVE_CERTIFIED_WGSL}",
-        ty = p.ty(),
-        nn = n * n,
-        eps = p.literal(eps)?,
-        gamma = up(m.gamma)?,
-        grow = up(m.grow)?,
-        tiny = up(m.tiny)?,
-        maxc = p.literal(MAX_CONTRACTION)?,
-        big = p.literal(BIG)?,
+        "{prelude}{GAUSS_JORDAN_WGSL}{CERTIFY_WGSL}{SOLVE_CERTIFIED_WGSL}",
+        prelude = solve_prelude(k, p)?
     );
     validate(&src, p)?;
     Ok(src)

@@ -1,0 +1,402 @@
+//! A conforming-device emulator: device floats whose every operation returns a result that
+//! the WGSL and Vulkan specifications allow, chosen adversarially from a seeded stream, so
+//! that code proven for "any conforming device" can be tested without one.
+//!
+//! What the specifications promise (Vulkan, "Precision and Operation of SPIR-V
+//! Instructions"; WGSL, "Floating Point Accuracy"), and what [`Emu32`] and [`Emu64`] do:
+//!
+//! - `+ - *` are correctly rounded, in a rounding mode the specifications leave open (to
+//!   nearest or toward zero): the emulator returns either neighbour of the exact result (at
+//!   most 1 ulp off). A multiply-add may be fused or not; a fused one rounds once, which is
+//!   one of the results allowed for the multiply, so the per-operation freedom covers it.
+//! - Subnormal operands and results may be flushed to zero (sign kept): the emulator flips
+//!   a coin for each.
+//! - `x / y`: within 2.5 ulp for |y| in [2^-126, 2^126], anything outside that range.
+//! - f32 `exp`: 3 + 2|x| ulp; `log`: 3 ulp outside [0.5, 2], absolute 2^-21 inside; `sin`
+//!   and `cos`: absolute 2^-11 on [-pi, pi]; `atan2`: 4096 ulp; `sqrt`: 1 / inverseSqrt
+//!   (inverseSqrt within 2 ulp). Outside those domains: anything.
+//! - Double precision: "at least that of single precision". [`Emu64`] keeps f64 storage and
+//!   range but rounds each operation with an error of up to one f32 ulp of its result, and
+//!   gives its functions the f32 functions' bounds (GLSL.std.450 defines none in f64).
+//!
+//! Each thread draws from its own stream; [`seed`] restarts the calling thread's stream and
+//! picks its rounding habit from the seed: each result's side at random, or every result
+//! toward zero, or every result away from zero (errors that add up instead of cancelling).
+//! The emulated types implement [`DeviceReal`], so every generic twin of a shader (the
+//! certificate, Gauss-Jordan, the certified values) runs on them as the device would.
+
+use std::cell::Cell;
+
+use crate::expr::certified::{DeviceReal, DEVICE_F64_UNIT, U32};
+
+thread_local! {
+    static STREAM: Cell<u64> = const { Cell::new(0x853c_49e6_748f_ea9b) };
+    static HABIT: Cell<Habit> = const { Cell::new(Habit::Random) };
+}
+
+/// Which side of the exact result a stream rounds to.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Habit {
+    Random,
+    TowardZero,
+    AwayFromZero,
+}
+
+/// Restarts the calling thread's stream of adversarial choices at `s`; its habit is
+/// `s % 3`: random sides, toward zero, away from zero.
+pub fn seed(s: u64) {
+    STREAM.with(|c| c.set(s ^ 0x853c_49e6_748f_ea9b));
+    let habit = [Habit::Random, Habit::TowardZero, Habit::AwayFromZero][(s % 3) as usize];
+    HABIT.with(|h| h.set(habit));
+}
+
+/// Whether to move the result of exact value x up (else down), by the stream's habit.
+fn upward(x: f64) -> bool {
+    match HABIT.with(|h| h.get()) {
+        Habit::Random => coin(),
+        Habit::TowardZero => x < 0.0,
+        Habit::AwayFromZero => x > 0.0,
+    }
+}
+
+/// The next 64 random bits of this thread's stream (splitmix64).
+fn bits() -> u64 {
+    STREAM.with(|c| {
+        let s = c.get().wrapping_add(0x9e37_79b9_7f4a_7c15);
+        c.set(s);
+        let mut z = s;
+        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+        z ^ (z >> 31)
+    })
+}
+
+fn coin() -> bool {
+    bits() & 1 == 1
+}
+
+/// A fraction in [0, 1): half the time within 2^-20 of 1 (the edge of what is allowed),
+/// else uniform.
+fn extent() -> f64 {
+    let u = (bits() >> 11) as f64 * 2f64.powi(-53);
+    if coin() {
+        1.0 - u * 2f64.powi(-20)
+    } else {
+        u
+    }
+}
+
+/// ±1 at random.
+fn sign() -> f64 {
+    if coin() {
+        1.0
+    } else {
+        -1.0
+    }
+}
+
+/// One ulp of f32 at x (finite, not NaN): 2^(e - 23) for |x| in [2^e, 2^(e+1)), the
+/// subnormal spacing 2^-149 below f32's normal range.
+fn ulp32(x: f64) -> f64 {
+    let e = ((x.to_bits() >> 52) & 0x7ff) as i32 - 1023;
+    2f64.powi((e - 23).max(-149))
+}
+
+/// A value arbitrary enough to break any code that trusted it.
+fn anything(x: f64) -> f64 {
+    match bits() % 4 {
+        0 => f64::NAN,
+        1 => x * 2f64.powi((bits() % 16) as i32 - 8),
+        2 => -x,
+        _ => 0.0,
+    }
+}
+
+/// A subnormal operand of the format with smallest normal `min` flushed to zero, half the
+/// time.
+fn operand(x: f64, min: f64) -> f64 {
+    if x != 0.0 && x.abs() < min && coin() {
+        0.0f64.copysign(x)
+    } else {
+        x
+    }
+}
+
+/// The f32 next to v, above it if `up` (v itself at the infinity in that direction).
+fn next32(v: f32, up: bool) -> f32 {
+    if v.is_nan() || (v.is_infinite() && (v > 0.0) == up) {
+        return v;
+    }
+    if v == 0.0 {
+        let t = f32::from_bits(1);
+        return if up { t } else { -t };
+    }
+    let b = v.to_bits();
+    f32::from_bits(if (v > 0.0) == up { b + 1 } else { b - 1 })
+}
+
+/// An f32 result for the exact value x: either f32 neighbour, a subnormal flushed half the
+/// time.
+fn round32(x: f64) -> f32 {
+    if x.is_nan() {
+        return f32::NAN;
+    }
+    let near = x as f32;
+    let r = if near as f64 == x {
+        near
+    } else {
+        let (lo, hi) = if (near as f64) < x {
+            (near, next32(near, true))
+        } else {
+            (next32(near, false), near)
+        };
+        if upward(x) {
+            hi
+        } else {
+            lo
+        }
+    };
+    if r != 0.0 && r.abs() < f32::MIN_POSITIVE && coin() {
+        0.0f32.copysign(r)
+    } else {
+        r
+    }
+}
+
+/// An f64 result for the value x (computed in f64): off by up to one f32 ulp of x
+/// ("at least single precision"), a subnormal flushed half the time.
+fn round64(x: f64) -> f64 {
+    if !x.is_finite() {
+        return x;
+    }
+    let side = if upward(x) { 1.0 } else { -1.0 };
+    let r = x + side * extent() * ulp32(x) * (1.0 - 2f64.powi(-20));
+    let r = if r.is_finite() { r } else { x };
+    if r != 0.0 && r.abs() < f64::MIN_POSITIVE && coin() {
+        0.0f64.copysign(r)
+    } else {
+        r
+    }
+}
+
+/// A value within `err` of x, but for a choice of the stream: x + t err, |t| < 1.
+fn within(x: f64, err: f64) -> f64 {
+    x + sign() * extent() * err * (1.0 - 2f64.powi(-20))
+}
+
+/// The specifications' bounds on the built-in functions, as a distance from the exact value
+/// at x (exact value y), or None where they promise nothing.
+mod spec {
+    use std::f64::consts::PI;
+
+    pub fn div(q: f64, y: f64, ulp: f64) -> Option<f64> {
+        let a = y.abs();
+        (a >= 2f64.powi(-126) && a <= 2f64.powi(126) && q.is_finite()).then_some(2.5 * ulp)
+    }
+    pub fn exp(x: f64, y: f64, ulp: f64) -> Option<f64> {
+        (x.abs() <= 88.0).then_some((3.0 + 2.0 * x.abs()) * ulp.max(super::ulp32(y)))
+    }
+    pub fn ln(x: f64, y: f64, ulp: f64) -> Option<f64> {
+        if !(x >= 2f64.powi(-126) && x.is_finite()) {
+            None
+        } else if (0.5..=2.0).contains(&x) {
+            Some(2f64.powi(-21))
+        } else {
+            Some(3.0 * ulp.max(super::ulp32(y)))
+        }
+    }
+    pub fn trig(x: f64) -> Option<f64> {
+        (x.abs() <= PI).then_some(2f64.powi(-11))
+    }
+    pub fn atan2(y: f64, x: f64, r: f64) -> Option<f64> {
+        (x.is_finite() && y.is_finite() && (x != 0.0 || y != 0.0))
+            .then_some(4096.0 * super::ulp32(r))
+    }
+}
+
+macro_rules! emulated {
+    ($name:ident, $t:ty, $unit:expr, $min:expr, $round:ident, $doc:literal) => {
+        #[doc = $doc]
+        #[derive(Clone, Copy, Debug, PartialEq, PartialOrd)]
+        pub struct $name(pub $t);
+
+        impl $name {
+            fn op(self) -> f64 {
+                operand(self.0 as f64, $min)
+            }
+            fn out(x: f64) -> Self {
+                $name($round(x))
+            }
+            /// A result within `err` of the exact x (or anything where err is None); an
+            /// f32 ulp is kept back for the rounding to the type.
+            fn near(x: f64, err: Option<f64>) -> Self {
+                let slack = if size_of::<$t>() == 4 { ulp32(x) } else { 0.0 };
+                let v = match err {
+                    Some(e) if x.is_finite() => within(x, (e - slack).max(0.0)),
+                    _ => anything(x),
+                };
+                $name(v as $t)
+            }
+        }
+
+        impl DeviceReal for $name {
+            fn of(x: f64) -> Self {
+                $name(<$t as DeviceReal>::of(x))
+            }
+            fn wide(self) -> f64 {
+                self.0 as f64
+            }
+            fn of_up(x: f64) -> Self {
+                $name(<$t as DeviceReal>::of_up(x))
+            }
+            const UNIT: f64 = $unit;
+            const SPEC_UNIT: f64 = $unit;
+            const MIN_NORMAL: f64 = $min;
+            fn add(self, b: Self) -> Self {
+                Self::out(self.op() + b.op())
+            }
+            fn sub(self, b: Self) -> Self {
+                Self::out(self.op() - b.op())
+            }
+            fn mul(self, b: Self) -> Self {
+                Self::out(self.op() * b.op())
+            }
+            fn div(self, b: Self) -> Self {
+                let (x, y) = (self.op(), b.op());
+                let q = x / y;
+                Self::near(q, spec::div(q, y, ulp32(q)))
+            }
+            fn abs(self) -> Self {
+                $name(self.0.abs())
+            }
+            fn sqrt(self) -> Self {
+                // 1 / inverseSqrt(x), inverseSqrt within 2 ulp.
+                let x = self.op();
+                let r = 1.0 / x.sqrt();
+                let is = if x > 0.0 && r.is_finite() {
+                    Self::near(r, Some(2.0 * ulp32(r)))
+                } else {
+                    Self::near(r, None)
+                };
+                Self::of(1.0).div(is)
+            }
+            fn exp(self) -> Self {
+                let x = self.op();
+                let y = x.exp();
+                Self::near(y, spec::exp(x, y, 0.0))
+            }
+            fn ln(self) -> Self {
+                let x = self.op();
+                let y = x.ln();
+                Self::near(y, spec::ln(x, y, 0.0))
+            }
+            fn sin(self) -> Self {
+                let x = self.op();
+                Self::near(x.sin(), spec::trig(x))
+            }
+            fn cos(self) -> Self {
+                let x = self.op();
+                Self::near(x.cos(), spec::trig(x))
+            }
+            fn atan2(self, b: Self) -> Self {
+                let (y, x) = (self.op(), b.op());
+                let r = y.atan2(x);
+                Self::near(r, spec::atan2(y, x, r))
+            }
+        }
+    };
+}
+
+emulated!(
+    Emu32,
+    f32,
+    U32,
+    f32::MIN_POSITIVE as f64,
+    round32,
+    "An f32 of an emulated conforming device: each operation as the specifications allow \
+     (module docs)."
+);
+emulated!(
+    Emu64,
+    f64,
+    DEVICE_F64_UNIT,
+    f64::MIN_POSITIVE,
+    round64,
+    "An f64 of an emulated conforming device: f64 storage and range, each operation with \
+     the error single precision allows (module docs); its unit is [`DEVICE_F64_UNIT`]."
+);
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn f32_operations_stay_within_one_ulp_and_take_both_sides() {
+        seed(0);
+        let (mut below, mut above) = (0, 0);
+        for i in 0..10_000 {
+            let a = 1.0f32 + i as f32 * 1e-3;
+            let b = 3.0f32 / (i as f32 + 7.0);
+            let exact = a as f64 * b as f64;
+            let got = Emu32(a).mul(Emu32(b)).0 as f64;
+            assert!((got - exact).abs() < ulp32(exact), "{a} * {b}");
+            below += (got < exact) as usize;
+            above += (got > exact) as usize;
+        }
+        assert!(below > 1_000 && above > 1_000, "{below} {above}");
+    }
+
+    #[test]
+    fn f64_operations_err_by_up_to_an_f32_ulp() {
+        seed(2);
+        let mut worst: f64 = 0.0;
+        for i in 0..10_000 {
+            let (a, b) = (1.0 + i as f64 * 1e-4, 0.1 + i as f64);
+            let exact = a + b;
+            let got = Emu64(a).add(Emu64(b)).0;
+            let rel = (got - exact).abs() / ulp32(exact);
+            assert!(rel < 1.0, "{a} + {b}: {rel} ulp");
+            worst = worst.max(rel);
+        }
+        // Far beyond f64's own rounding: the freedom the specifications leave is used.
+        assert!(worst > 0.9, "{worst}");
+    }
+
+    #[test]
+    fn subnormals_are_flushed_sometimes() {
+        seed(3);
+        let tiny = f32::MIN_POSITIVE / 4.0;
+        let flushed = (0..200)
+            .filter(|_| Emu32(tiny).add(Emu32(0.0)).0 == 0.0)
+            .count();
+        assert!(flushed > 20 && flushed < 180, "{flushed}");
+    }
+
+    #[test]
+    fn division_outside_its_range_promises_nothing() {
+        seed(4);
+        let odd = (0..100)
+            .filter(|_| {
+                let q = Emu32(1.0).div(Emu32(f32::MAX)).0;
+                !(0.0..1e-37).contains(&q)
+            })
+            .count();
+        assert!(odd > 0);
+        for i in 1..1000 {
+            let (x, y) = (i as f32, 7.0f32);
+            let (q, exact) = (Emu32(x).div(Emu32(y)).0 as f64, x as f64 / 7.0);
+            assert!((q - exact).abs() <= 2.5 * ulp32(exact));
+        }
+    }
+
+    #[test]
+    fn streams_are_deterministic() {
+        let run = || {
+            seed(9);
+            (0..100)
+                .map(|i| Emu64(i as f64 + 0.1).mul(Emu64(0.3)).0.to_bits())
+                .collect::<Vec<_>>()
+        };
+        assert_eq!(run(), run());
+    }
+}
