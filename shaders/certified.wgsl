@@ -74,7 +74,7 @@ fn cb_div(a: Cv, b: Cv, cpu: bool) -> Cv {
     let be = b.y + CB_TINY;
     let bb = abs(b.x);
     let den = bb - be;
-    if (!(den > real(0.0))) {
+    if (!(den >= CB_DIV_MIN) || !(bb <= CB_DIV_MAX)) {
         return cb_unknown(q);
     }
     let qa = abs(q) * (real(1.0) + real(2.0) * CB_DIV);
@@ -85,16 +85,18 @@ fn cb_div(a: Cv, b: Cv, cpu: bool) -> Cv {
 
 fn cb_sqrt(a: Cv, cpu: bool) -> Cv {
     let y = sqrt(a.x);
-    if (!cb_known(a) || !(a.x - a.y >= real(0.0))) {
+    if (!cb_known(a) || !(a.x - a.y >= CB_SQRT_MIN) || !(a.x <= CB_SQRT_MAX)) {
         return cb_unknown(y);
     }
     let by_slope = a.y / (y * (real(1.0) - CB_SQRT));
-    let by_root = sqrt(a.y) * (real(1.0) + CB_SQRT);
-    var prop = by_root;
+    var prop = by_slope;
     if (a.y == real(0.0)) {
         prop = real(0.0);
-    } else if (by_slope < by_root) {
-        prop = by_slope;
+    } else if (a.y >= CB_SQRT_MIN) {
+        let by_root = sqrt(a.y) * (real(1.0) + CB_SQRT);
+        if (!(by_slope < by_root)) {
+            prop = by_root;
+        }
     }
     return cb_done(y, prop + (CB_SQRT + cb_cpu_unit(cpu)) * (abs(y) + prop));
 }
@@ -112,10 +114,10 @@ fn cb_exp_claim(x: real) -> real {
 
 fn cb_exp_raw(a: Cv) -> Cv {
     let y = cb_dev_exp(a.x);
-    if (!cb_known(a)) {
+    let top = a.x + a.y;
+    if (!cb_known(a) || !(abs(a.x) <= CB_EXP_MAX) || !(top <= CB_EXP_MAX)) {
         return cb_unknown(y);
     }
-    let top = a.x + a.y;
     let prop = cb_dev_exp(top) * (real(1.0) + cb_exp_claim(top)) * a.y;
     return cb_done(y, prop + cb_exp_claim(a.x) * abs(y));
 }
@@ -123,7 +125,7 @@ fn cb_exp_raw(a: Cv) -> Cv {
 fn cb_ln_raw(a: Cv) -> Cv {
     let y = cb_dev_ln(a.x);
     let lo = a.x - a.y;
-    if (!cb_known(a) || !(lo > real(0.0)) || !(a.x >= CB_LN_MIN) || !(a.x <= CB_LN_MAX)) {
+    if (!cb_known(a) || !(lo >= CB_DIV_MIN) || !(a.x >= CB_LN_MIN) || !(a.x <= CB_LN_MAX)) {
         return cb_unknown(y);
     }
     return cb_done(y, a.y / lo + (CB_LN_REL * abs(y) + CB_LN_ABS));
@@ -144,7 +146,7 @@ fn cb_atan2_raw(y: Cv, x: Cv) -> Cv {
     let r = max(abs(x.x), abs(y.x));
     let delta = y.y + x.y;
     let cut = x.x - x.y < real(0.0) && !(abs(y.x) > y.y);
-    if (!cb_known2(y, x) || !(delta < r) || cut) {
+    if (!cb_known2(y, x) || !(delta < r) || cut || !(r >= CB_ATAN_MIN) || !(r <= CB_ATAN_MAX)) {
         return cb_unknown(t);
     }
     let prop = real(1.5707963267948966) * delta / r;
@@ -152,7 +154,7 @@ fn cb_atan2_raw(y: Cv, x: Cv) -> Cv {
 }
 
 fn cb_neg(a: Cv) -> Cv {
-    return Cv(real(0.0) - a.x, a.y);
+    return Cv(-a.x, a.y);
 }
 
 fn cb_abs(a: Cv) -> Cv {

@@ -16,8 +16,13 @@
 //!   and `cos`: absolute 2^-11 on [-pi, pi]; `atan2`: 4096 ulp; `sqrt`: 1 / inverseSqrt
 //!   (inverseSqrt within 2 ulp). Outside those domains: anything.
 //! - Double precision: "at least that of single precision". [`Emu64`] keeps f64 storage and
-//!   range but rounds each operation with an error of up to one f32 ulp of its result, and
-//!   gives its functions the f32 functions' bounds (GLSL.std.450 defines none in f64).
+//!   range but rounds each result to a 24-bit significand (either neighbour).
+//! - Negation and `abs` flip or clear the sign bit: exact.
+//!
+//! The elementary functions are those of the certified shader (`cb_dev_*`): the f32
+//! built-ins, sin and cos after the shader's reduction to [-pi, pi] (emulated operation by
+//! operation); [`Emu64`]'s convert the argument to f32 first (GLSL.std.450 defines no f64
+//! exp, log, sin, cos or atan2).
 //!
 //! Each thread draws from its own stream; [`seed`] restarts the calling thread's stream and
 //! picks its rounding habit from the seed: each result's side at random, or every result
@@ -99,7 +104,7 @@ fn sign() -> f64 {
 /// subnormal spacing 2^-149 below f32's normal range.
 fn ulp32(x: f64) -> f64 {
     let e = ((x.to_bits() >> 52) & 0x7ff) as i32 - 1023;
-    2f64.powi((e - 23).max(-149))
+    pow2((e - 23).max(-149))
 }
 
 /// A value arbitrary enough to break any code that trusted it.
@@ -163,15 +168,38 @@ fn round32(x: f64) -> f32 {
     }
 }
 
-/// An f64 result for the value x (computed in f64): off by up to one f32 ulp of x
-/// ("at least single precision"), a subnormal flushed half the time.
+/// One ulp of a 24-bit significand at x in f64's exponent range: single precision's
+/// relative spacing, 2^(e - 23) for |x| in [2^e, 2^(e+1)).
+fn ulp_single(x: f64) -> f64 {
+    let e = ((x.to_bits() >> 52) & 0x7ff) as i32 - 1023;
+    pow2((e - 23).max(-1074))
+}
+
+/// 2^k for k in -1074..=1023, exactly (powi underflows below about 2^-1022).
+fn pow2(k: i32) -> f64 {
+    if k >= -1022 {
+        f64::from_bits(((k + 1023) as u64) << 52)
+    } else {
+        f64::from_bits(1u64 << (k + 1074))
+    }
+}
+
+/// An f64 result for the value x (computed in f64) at single precision: x itself where a
+/// 24-bit significand holds it, else either neighbour with a 24-bit significand (in f64's
+/// exponent range), a subnormal flushed half the time.
 fn round64(x: f64) -> f64 {
     if !x.is_finite() {
         return x;
     }
-    let side = if upward(x) { 1.0 } else { -1.0 };
-    let r = x + side * extent() * ulp32(x) * (1.0 - 2f64.powi(-20));
-    let r = if r.is_finite() { r } else { x };
+    let m = ulp_single(x);
+    let lo = (x / m).floor() * m;
+    let r = if lo == x {
+        x
+    } else if upward(x) {
+        lo + m
+    } else {
+        lo
+    };
     if r != 0.0 && r.abs() < f64::MIN_POSITIVE && coin() {
         0.0f64.copysign(r)
     } else {
@@ -214,8 +242,50 @@ mod spec {
     }
 }
 
+/// The f32 built-ins as the certified shader calls them (`cb_dev_*`), on emulated f32
+/// arguments.
+mod builtin {
+    use super::{spec, Emu32};
+    use crate::expr::certified::DeviceReal;
+
+    fn near(x: f64, err: Option<f64>) -> Emu32 {
+        Emu32::near(x, err)
+    }
+
+    pub fn exp(x: Emu32) -> Emu32 {
+        let x = x.op();
+        let y = x.exp();
+        near(y, spec::exp(x, y, 0.0))
+    }
+
+    pub fn ln(x: Emu32) -> Emu32 {
+        let x = x.op();
+        let y = x.ln();
+        near(y, spec::ln(x, y, 0.0))
+    }
+
+    /// `cb_reduce` (x - 2 pi n in emulated f32 operations, clamped to [-pi, pi]), then the
+    /// built-in.
+    pub fn trig(x: Emu32, cos: bool) -> Emu32 {
+        let c = |v: f64| Emu32(v as f32);
+        let lo = (std::f64::consts::TAU - 6.28125) as f32 as f64;
+        let n = c((x.mul(c(0.15915494)).0 as f64).round());
+        let r = x.sub(n.mul(c(6.28125))).sub(n.mul(c(lo)));
+        let r = (r.0 as f64).clamp(-3.1415925, 3.1415925);
+        let r = (r as f32) as f64;
+        let y = if cos { r.cos() } else { r.sin() };
+        near(y, spec::trig(r))
+    }
+
+    pub fn atan2(y: Emu32, x: Emu32) -> Emu32 {
+        let (y, x) = (y.op(), x.op());
+        let r = y.atan2(x);
+        near(r, spec::atan2(y, x, r))
+    }
+}
+
 macro_rules! emulated {
-    ($name:ident, $t:ty, $unit:expr, $min:expr, $round:ident, $doc:literal) => {
+    ($name:ident, $t:ty, $unit:expr, $min:expr, $round:ident, $ulp:ident, $doc:literal) => {
         #[doc = $doc]
         #[derive(Clone, Copy, Debug, PartialEq, PartialOrd)]
         pub struct $name(pub $t);
@@ -223,6 +293,11 @@ macro_rules! emulated {
         impl $name {
             fn op(self) -> f64 {
                 operand(self.0 as f64, $min)
+            }
+            /// The value as the f32 a built-in function takes (a conversion, either
+            /// neighbour, for f64).
+            fn to32(self) -> Emu32 {
+                Emu32(round32(self.op()))
             }
             fn out(x: f64) -> Self {
                 $name($round(x))
@@ -264,44 +339,39 @@ macro_rules! emulated {
             fn div(self, b: Self) -> Self {
                 let (x, y) = (self.op(), b.op());
                 let q = x / y;
-                Self::near(q, spec::div(q, y, ulp32(q)))
+                Self::near(q, spec::div(q, y, $ulp(q)))
             }
             fn abs(self) -> Self {
                 $name(self.0.abs())
+            }
+            fn neg(self) -> Self {
+                $name(-self.0)
             }
             fn sqrt(self) -> Self {
                 // 1 / inverseSqrt(x), inverseSqrt within 2 ulp.
                 let x = self.op();
                 let r = 1.0 / x.sqrt();
                 let is = if x > 0.0 && r.is_finite() {
-                    Self::near(r, Some(2.0 * ulp32(r)))
+                    Self::near(r, Some(2.0 * $ulp(r)))
                 } else {
                     Self::near(r, None)
                 };
                 Self::of(1.0).div(is)
             }
             fn exp(self) -> Self {
-                let x = self.op();
-                let y = x.exp();
-                Self::near(y, spec::exp(x, y, 0.0))
+                $name(builtin::exp(self.to32()).0 as $t)
             }
             fn ln(self) -> Self {
-                let x = self.op();
-                let y = x.ln();
-                Self::near(y, spec::ln(x, y, 0.0))
+                $name(builtin::ln(self.to32()).0 as $t)
             }
             fn sin(self) -> Self {
-                let x = self.op();
-                Self::near(x.sin(), spec::trig(x))
+                $name(builtin::trig(self.to32(), false).0 as $t)
             }
             fn cos(self) -> Self {
-                let x = self.op();
-                Self::near(x.cos(), spec::trig(x))
+                $name(builtin::trig(self.to32(), true).0 as $t)
             }
             fn atan2(self, b: Self) -> Self {
-                let (y, x) = (self.op(), b.op());
-                let r = y.atan2(x);
-                Self::near(r, spec::atan2(y, x, r))
+                $name(builtin::atan2(self.to32(), b.to32()).0 as $t)
             }
         }
     };
@@ -313,6 +383,7 @@ emulated!(
     U32,
     f32::MIN_POSITIVE as f64,
     round32,
+    ulp32,
     "An f32 of an emulated conforming device: each operation as the specifications allow \
      (module docs)."
 );
@@ -322,6 +393,7 @@ emulated!(
     DEVICE_F64_UNIT,
     f64::MIN_POSITIVE,
     round64,
+    ulp_single,
     "An f64 of an emulated conforming device: f64 storage and range, each operation with \
      the error single precision allows (module docs); its unit is [`DEVICE_F64_UNIT`]."
 );
@@ -354,7 +426,7 @@ mod tests {
             let (a, b) = (1.0 + i as f64 * 1e-4, 0.1 + i as f64);
             let exact = a + b;
             let got = Emu64(a).add(Emu64(b)).0;
-            let rel = (got - exact).abs() / ulp32(exact);
+            let rel = (got - exact).abs() / ulp_single(exact);
             assert!(rel < 1.0, "{a} + {b}: {rel} ulp");
             worst = worst.max(rel);
         }

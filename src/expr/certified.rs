@@ -41,7 +41,8 @@ pub const CPU_FN_ULPS: f64 = 4.0;
 /// for the Rust twin and the shader (whose constants are written from this).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Accuracy {
-    /// Unit roundoff of + - * on the device (correctly rounded in WGSL and Vulkan).
+    /// Relative error of + - * on the device: one ulp (2 unit roundoffs), since the
+    /// specifications leave the rounding mode open (to nearest or toward zero).
     pub unit: f64,
     /// Unit roundoff of the CPU's f64 operations.
     pub cpu: f64,
@@ -54,14 +55,20 @@ pub struct Accuracy {
     pub grow: f64,
     /// Bounds at or above this mean "unknown" (a power of two: exact in f32 and f64).
     pub big: f64,
-    /// Relative error of the device's division (2.5 ulp in WGSL and Vulkan).
+    /// Relative error of the device's division (2.5 ulp in WGSL and Vulkan),
     pub div: f64,
-    /// Relative error of the device's sqrt (WGSL: inherited from 1 / inverseSqrt).
+    /// for divisors of magnitude within this range (outside it, any result).
+    pub div_range: [f64; 2],
+    /// Relative error of the device's sqrt (WGSL: inherited from 1 / inverseSqrt),
     pub sqrt: f64,
-    /// The device's exp: relative error `exp0 + exp1 |x|`.
+    /// for arguments within this range (so that the division meets its claim).
+    pub sqrt_range: [f64; 2],
+    /// The device's exp: relative error `exp0 + exp1 |x|`, for |x| at most `exp_max`.
     pub exp0: f64,
     /// See `exp0`.
     pub exp1: f64,
+    /// See `exp0`.
+    pub exp_max: f64,
     /// The device's ln: error `ln_rel |y| + ln_abs`, for arguments in `ln_range`.
     pub ln_rel: f64,
     /// See `ln_rel`.
@@ -75,70 +82,77 @@ pub struct Accuracy {
     pub trig_rel: f64,
     /// See `trig_abs`.
     pub trig_max: f64,
-    /// The device's atan2: error `atan_rel |y| + atan_abs`.
+    /// The device's atan2: error `atan_rel |y| + atan_abs`, for max(|x|, |y|) within
+    /// `atan_range`.
     pub atan_rel: f64,
     /// See `atan_rel`.
     pub atan_abs: f64,
+    /// See `atan_rel`.
+    pub atan_range: [f64; 2],
 }
 
 impl Accuracy {
     /// A device computing in f32 with WGSL's built-in functions, at the accuracy the WGSL
-    /// specification requires of them (sin and cos after the shader's own reduction to
-    /// [-pi, pi]).
+    /// and Vulkan specifications require of them (sin and cos after the shader's own
+    /// reduction to [-pi, pi]); outside the ranges they bound, values are unknown.
     pub fn f32() -> Accuracy {
         let u = U32;
         Accuracy {
-            unit: u,
+            unit: 2.0 * u,
             cpu: U64,
             cpu_fn: 2.0 * CPU_FN_ULPS * U64,
             tiny: 2.0f64.powi(-125),
             grow: 1.0 + 64.0 * u,
             big: 2.0f64.powi(120),
             div: 5.0 * u,
+            div_range: [2.0f64.powi(-126), 2.0f64.powi(126)],
             sqrt: 12.0 * u,
+            sqrt_range: [2.0f64.powi(-124), 2.0f64.powi(124)],
             // 3 + 2|x| ulp.
             exp0: 6.0 * u,
             exp1: 4.0 * u,
+            exp_max: 88.0,
             // 3 ulp outside [0.5, 2], absolute 2^-21 inside.
             ln_rel: 6.0 * u,
             ln_abs: 2.0f64.powi(-21),
-            ln_range: [2.0f64.powi(-125), 1e38],
+            ln_range: [2.0f64.powi(-125), 2.0f64.powi(126)],
             // Absolute 2^-11 on [-pi, pi], plus the reduction's rounding.
             trig_abs: 2.0f64.powi(-11),
             trig_rel: 8.0 * u,
             trig_max: 1e5,
-            // 4096 ulp.
+            // 4096 ulp, and a flushed subnormal coordinate (at most 2^-126 / 2^-100).
             atan_rel: 8192.0 * u,
-            atan_abs: 2.0f64.powi(-125),
+            atan_abs: 2.0f64.powi(-25),
+            atan_range: [2.0f64.powi(-100), 2.0f64.powi(100)],
         }
     }
 
-    /// A device computing in f64 with `shaders/math_f64.wgsl`, at the accuracy measured for
-    /// those functions on lavapipe (tests/gpu.rs measures them and checks that these claims
-    /// hold), given IEEE f64 + - * and f32 first guesses within 2^-20.
+    /// A device computing in f64: only what the specifications promise, which is single
+    /// precision for every operation ([`DEVICE_F64_UNIT`]), f64's range, and no f64
+    /// elementary functions at all. The shader takes exp, ln, sin, cos and atan2 from the
+    /// f32 built-ins on arguments converted to f32: their bounds are f32's plus that
+    /// conversion (an error of 2u |x| in the argument of exp, sin and cos, 2u relative in
+    /// those of ln and atan2).
     pub fn f64() -> Accuracy {
-        let u = U64;
+        let f = Accuracy::f32();
+        let u = DEVICE_F64_UNIT;
         Accuracy {
-            unit: u,
-            cpu: U64,
-            cpu_fn: 2.0 * CPU_FN_ULPS * U64,
+            unit: 2.0 * u,
             tiny: 2.0f64.powi(-1020),
-            grow: 1.0 + 64.0 * u,
             big: 2.0f64.powi(995),
-            div: 5.0 * u,
-            sqrt: 12.0 * u,
-            exp0: 16.0 * u,
-            exp1: 0.0,
-            ln_rel: 16.0 * u,
-            ln_abs: 16.0 * u,
-            // m64_ln starts from an f32 guess: inside f32's normal range only.
-            ln_range: [2.0f64.powi(-125), 1e38],
-            trig_abs: 16.0 * u,
-            trig_rel: 4.0 * u,
-            trig_max: 1e6,
-            atan_rel: 32.0 * u,
-            atan_abs: 16.0 * u,
+            exp0: f.exp0 + u,
+            exp1: f.exp1 + 3.0 * u,
+            ln_abs: f.ln_abs + 3.0 * u,
+            trig_abs: f.trig_abs + 2.0f64.powi(-120),
+            trig_rel: f.trig_rel + 3.0 * u,
+            atan_abs: f.atan_abs + 3.0 * u,
+            ..f
         }
+    }
+
+    /// Whether `x` lies within `range` (NaN does not).
+    pub fn within(x: f64, range: [f64; 2]) -> bool {
+        x >= range[0] && x <= range[1]
     }
 }
 
@@ -167,6 +181,8 @@ pub trait DeviceReal: Copy + PartialOrd + std::fmt::Debug {
     fn div(self, b: Self) -> Self;
     /// |a|.
     fn abs(self) -> Self;
+    /// -a (a sign flip: exact on every device).
+    fn neg(self) -> Self;
     /// sqrt a.
     fn sqrt(self) -> Self;
     /// exp a.
@@ -219,6 +235,9 @@ macro_rules! device_real {
             }
             fn abs(self) -> Self {
                 <$t>::abs(self)
+            }
+            fn neg(self) -> Self {
+                -self
             }
             fn sqrt(self) -> Self {
                 <$t>::sqrt(self)
@@ -313,6 +332,12 @@ impl<R: DeviceReal> Rules<R> {
         R::of(x)
     }
 
+    /// Whether x lies within `range` (NaN does not): where the device's operation meets
+    /// its claim.
+    fn inside(&self, x: R, range: [f64; 2]) -> bool {
+        x >= self.c(range[0]) && x <= self.c(range[1])
+    }
+
     /// `v` with bound `e` enlarged by `grow` (and `tiny`); unknown when not finite.
     fn done(&self, v: R, e: R) -> Cv<R> {
         let e = e.mul(self.grow).add(self.tiny);
@@ -377,7 +402,8 @@ impl<R: DeviceReal> Rules<R> {
         self.done(a.v.mul(b.v), e)
     }
 
-    /// a / b; unknown when b's bound reaches 0.
+    /// a / b; unknown when b's bound reaches 0, or b or the bound's divisor leaves the
+    /// range where the device's division meets its claim.
     pub fn div(&self, a: Cv<R>, b: Cv<R>, cpu: bool) -> Cv<R> {
         let q = a.v.div(b.v);
         if !self.known2(a, b) {
@@ -386,7 +412,8 @@ impl<R: DeviceReal> Rules<R> {
         let (ae, be) = (a.e.add(self.tiny), b.e.add(self.tiny));
         let bb = b.v.abs();
         let den = bb.sub(be);
-        if !(den > self.c(0.0)) {
+        let range = self.acc.div_range;
+        if !(den >= self.c(range[0])) || !(bb <= self.c(range[1])) {
             return self.unknown(q);
         }
         // |a/b - A/B| <= (|a| e_b + |b| e_a) / (|b| (|b| - e_b)) = |a/b| e_b/den + e_a/den,
@@ -399,23 +426,31 @@ impl<R: DeviceReal> Rules<R> {
         self.done(q, e)
     }
 
-    /// sqrt a; unknown when a's bound reaches below 0.
+    /// sqrt a; unknown when a's bound leaves the range where the device's sqrt meets its
+    /// claim (below it, sqrt 0 included: 1 / inverseSqrt(0) promises nothing).
     pub fn sqrt(&self, a: Cv<R>, cpu: bool) -> Cv<R> {
         let y = a.v.sqrt();
-        if !a.known(&self.acc) || !(a.v.sub(a.e) >= self.c(0.0)) {
+        let range = self.acc.sqrt_range;
+        if !a.known(&self.acc) || !(a.v.sub(a.e) >= self.c(range[0])) || !(a.v <= self.c(range[1]))
+        {
             return self.unknown(y);
         }
         let s = self.c(self.acc.sqrt);
-        // |sqrt x - sqrt y| <= |x - y| / sqrt(x), and <= sqrt|x - y|.
+        // |sqrt x - sqrt y| <= |x - y| / sqrt(x), and <= sqrt|x - y| (the device's sqrt of
+        // the bound, where it meets its claim).
         let one = self.c(1.0);
         let by_slope = a.e.div(y.mul(one.sub(s)));
-        let by_root = a.e.sqrt().mul(one.add(s));
         let prop = if a.e == self.c(0.0) {
             self.c(0.0)
-        } else if by_slope < by_root {
+        } else if !(a.e >= self.c(range[0])) {
             by_slope
         } else {
-            by_root
+            let by_root = a.e.sqrt().mul(one.add(s));
+            if by_slope < by_root {
+                by_slope
+            } else {
+                by_root
+            }
         };
         let e = prop.add(s.add(self.cpu_unit(cpu)).mul(y.abs().add(prop)));
         self.done(y, e)
@@ -433,10 +468,11 @@ impl<R: DeviceReal> Rules<R> {
     /// exp a, as the device computes it.
     fn exp_raw(&self, a: Cv<R>) -> Cv<R> {
         let y = a.v.exp();
-        if !a.known(&self.acc) {
+        let top = a.v.add(a.e);
+        let max = self.c(self.acc.exp_max);
+        if !a.known(&self.acc) || !(a.v.abs() <= max) || !(top <= max) {
             return self.unknown(y);
         }
-        let top = a.v.add(a.e);
         let claim = |x: R| {
             self.c(self.acc.exp0)
                 .add(self.c(self.acc.exp1).mul(x.abs()))
@@ -455,7 +491,7 @@ impl<R: DeviceReal> Rules<R> {
         let lo = a.v.sub(a.e);
         let [r0, r1] = self.acc.ln_range;
         if !a.known(&self.acc)
-            || !(lo > self.c(0.0))
+            || !(lo >= self.c(self.acc.div_range[0]))
             || !(a.v >= self.c(r0))
             || !(a.v <= self.c(r1))
         {
@@ -498,7 +534,7 @@ impl<R: DeviceReal> Rules<R> {
         let delta = y.e.add(x.e);
         let zero = self.c(0.0);
         let cut = x.v.sub(x.e) < zero && !(y.v.abs() > y.e);
-        if !self.known2(y, x) || !(delta < r) || cut {
+        if !self.known2(y, x) || !(delta < r) || cut || !self.inside(r, self.acc.atan_range) {
             return self.unknown(t);
         }
         // The angle between p and q with |p - q| <= delta < |p| is at most
@@ -516,7 +552,7 @@ impl<R: DeviceReal> Rules<R> {
         let one = Cv::exact(self.c(1.0));
         match op {
             Op1::Neg => Cv {
-                v: self.c(0.0).sub(a.v),
+                v: a.v.neg(),
                 e: a.e,
             },
             Op1::Abs => Cv {

@@ -196,36 +196,30 @@ pub fn eval_shader(prog: &Program, p: Precision) -> Result<String> {
     Ok(src)
 }
 
-/// The device primitives the certified rules build on: `shaders/math_f64.wgsl` in f64; in
-/// f32 WGSL's built-ins, sin and cos after a reduction to [-pi, pi] (where WGSL bounds their
-/// error).
+/// The device primitives the certified rules build on: WGSL's f32 built-ins, whose accuracy
+/// the specifications bound (sin and cos after a reduction to [-pi, pi], where that bound
+/// holds); in f64, the same built-ins on arguments converted to f32, since no f64 elementary
+/// function has a bound any specification promises ([`Accuracy::f64`] adds the conversion).
 fn certified_primitives(p: Precision) -> String {
-    match p {
-        Precision::F64 => "fn cb_dev_exp(x: f64) -> f64 { return m64_exp(x); }
-fn cb_dev_ln(x: f64) -> f64 { return m64_ln(x); }
-fn cb_dev_sin(x: f64) -> f64 { return m64_sin(x); }
-fn cb_dev_cos(x: f64) -> f64 { return m64_cos(x); }
-fn cb_dev_atan2(y: f64, x: f64) -> f64 { return m64_atan2(y, x); }
-"
-        .into(),
-        Precision::F32 => {
-            let lo = (std::f64::consts::TAU - 6.28125) as f32;
-            format!(
-                "// x - 2 pi n: n * 6.28125 is exact for |n| < 2^15, and so is the difference.
+    let lo = (std::f64::consts::TAU - 6.28125) as f32;
+    let (to32, back) = match p {
+        Precision::F64 => ("f32", "f64"),
+        Precision::F32 => ("", ""),
+    };
+    format!(
+        "// x - 2 pi n: n * 6.28125 is exact for |n| < 2^15, and so is the difference.
 fn cb_reduce(x: f32) -> f32 {{
     let n = round(x * 0.15915494f);
     let r = (x - n * 6.28125f) - n * {lo:?}f;
     return clamp(r, -3.1415925f, 3.1415925f);
 }}
-fn cb_dev_exp(x: f32) -> f32 {{ return exp(x); }}
-fn cb_dev_ln(x: f32) -> f32 {{ return log(x); }}
-fn cb_dev_sin(x: f32) -> f32 {{ return sin(cb_reduce(x)); }}
-fn cb_dev_cos(x: f32) -> f32 {{ return cos(cb_reduce(x)); }}
-fn cb_dev_atan2(y: f32, x: f32) -> f32 {{ return atan2(y, x); }}
+fn cb_dev_exp(x: real) -> real {{ return {back}(exp({to32}(x))); }}
+fn cb_dev_ln(x: real) -> real {{ return {back}(log({to32}(x))); }}
+fn cb_dev_sin(x: real) -> real {{ return {back}(sin(cb_reduce({to32}(x)))); }}
+fn cb_dev_cos(x: real) -> real {{ return {back}(cos(cb_reduce({to32}(x)))); }}
+fn cb_dev_atan2(y: real, x: real) -> real {{ return {back}(atan2({to32}(y), {to32}(x))); }}
 "
-            )
-        }
-    }
+    )
 }
 
 /// The CB_* constants of `shaders/certified.wgsl`, from [`Accuracy`].
@@ -239,9 +233,14 @@ fn certified_constants(p: Precision, acc: &Accuracy) -> Result<String> {
         ("CB_GROW", acc.grow),
         ("CB_BIG", acc.big),
         ("CB_DIV", acc.div),
+        ("CB_DIV_MIN", acc.div_range[0]),
+        ("CB_DIV_MAX", acc.div_range[1]),
         ("CB_SQRT", acc.sqrt),
+        ("CB_SQRT_MIN", acc.sqrt_range[0]),
+        ("CB_SQRT_MAX", acc.sqrt_range[1]),
         ("CB_EXP0", acc.exp0),
         ("CB_EXP1", acc.exp1),
+        ("CB_EXP_MAX", acc.exp_max),
         ("CB_LN_REL", acc.ln_rel),
         ("CB_LN_ABS", acc.ln_abs),
         ("CB_LN_MIN", acc.ln_range[0]),
@@ -251,6 +250,8 @@ fn certified_constants(p: Precision, acc: &Accuracy) -> Result<String> {
         ("CB_TRIG_MAX", acc.trig_max),
         ("CB_ATAN_REL", acc.atan_rel),
         ("CB_ATAN_ABS", acc.atan_abs),
+        ("CB_ATAN_MIN", acc.atan_range[0]),
+        ("CB_ATAN_MAX", acc.atan_range[1]),
     ];
     for (name, v) in consts {
         let _ = writeln!(s, "const {name}: real = {};", p.literal(v)?);
@@ -337,9 +338,6 @@ pub fn certified_shader(prog: &Program, p: Precision) -> Result<String> {
         "const LATTICE_FACTOR: real = {};",
         p.literal(lattice_factor(&acc, d))?
     );
-    if p == Precision::F64 {
-        src.push_str(MATH_F64_WGSL);
-    }
     src.push_str(&certified_primitives(p));
     src.push_str(CERTIFIED_WGSL);
     src.push_str(&emit_certified_function(prog, "isomesh_fc", p)?);
