@@ -57,9 +57,14 @@ done
 same() {
     local what=$1
     shift
-    local a="$OUT/cpu.csv" b="$OUT/gpu.csv"
+    local a="$OUT/cpu.csv" b="$OUT/gpu.csv" cpu_args=()
     rm -f "$a" "$b"
-    if ! timeout 60 "$B" trace "$@" --backend cpu --no-complex --out "$a" >/dev/null 2>"$OUT/err.txt"; then
+    # The CPU reference takes no GPU flag.
+    for arg in "$@"; do
+        [ "$arg" = --device-values ] || cpu_args+=("$arg")
+    done
+    if ! timeout 60 "$B" trace "${cpu_args[@]}" --backend cpu --no-complex --out "$a" >/dev/null \
+        2>"$OUT/err.txt"; then
         fail "$what: the CPU run failed: $(tail -1 "$OUT/err.txt")"
         return
     fi

@@ -1,5 +1,7 @@
 //! Adapters and devices: which GPUs wgpu offers, and one opened for compute.
 
+use std::sync::Mutex;
+
 use crate::error::{Error, Result};
 pub use crate::report::AdapterSummary;
 
@@ -92,10 +94,31 @@ pub struct Gpu {
     pub adapter: AdapterSummary,
 }
 
+/// The devices this process opened, one per kind of request (software adapters allowed or
+/// not): every [`Gpu::open`] shares it. A Vulkan instance and device per call, created and
+/// dropped from several threads at once, crashed the NVIDIA driver (a segmentation fault in
+/// most runs of the GPU test suite with 8 threads); wgpu's device is built to be shared by
+/// threads, and one that lives until the process ends is never torn down while another
+/// thread opens one.
+static OPENED: Mutex<[Option<Gpu>; 2]> = Mutex::new([None, None]);
+
 impl Gpu {
-    /// Opens the best adapter; with `allow_software` false, software adapters are skipped.
-    /// Errors when none is usable.
+    /// The best adapter's device, opened on first use and shared by every later call (and
+    /// thread); with `allow_software` false, software adapters are skipped. Errors when none
+    /// is usable (and tries again on the next call).
     pub fn open(allow_software: bool) -> Result<Self> {
+        let mut opened = OPENED.lock().unwrap_or_else(|e| e.into_inner());
+        let slot = &mut opened[usize::from(allow_software)];
+        if let Some(g) = slot {
+            return Ok(g.clone());
+        }
+        let g = Self::open_new(allow_software)?;
+        *slot = Some(g.clone());
+        Ok(g)
+    }
+
+    /// Opens a device of the best adapter, not shared.
+    fn open_new(allow_software: bool) -> Result<Self> {
         let adapter = compute_adapters(|a| {
             allow_software || a.get_info().device_type != wgpu::DeviceType::Cpu
         })
