@@ -36,6 +36,7 @@ use crate::trace::{CpuOracle, Decisions, Oracle, ScanGrid};
 use crate::triangulation::Triangulation;
 
 mod device;
+mod emulated;
 mod eval_certified;
 mod eval_vertices;
 mod perturb;
@@ -109,6 +110,8 @@ pub struct GpuOracle<'f> {
     device_values: AtomicBool,
     /// Test hook: device values moved within their bounds (0: off, else a seed).
     perturb: AtomicU64,
+    /// Test hook: the floating-point stages emulated on the CPU (0: off, else a seed).
+    emulate: AtomicU64,
     /// Buffers kept across calls, per stage and role; they grow when a batch needs more.
     buffers: Mutex<[Vec<Option<wgpu::Buffer>>; STAGES]>,
 }
@@ -158,6 +161,7 @@ impl<'f> GpuOracle<'f> {
             phased: AtomicBool::new(false),
             device_values: AtomicBool::new(false),
             perturb: AtomicU64::new(0),
+            emulate: AtomicU64::new(0),
             buffers: Mutex::new(Default::default()),
         })
     }
@@ -243,6 +247,17 @@ impl<'f> GpuOracle<'f> {
     /// bounds. S must not change.
     pub fn perturb_device_values(&self, seed: Option<u64>) {
         self.perturb
+            .store(seed.map_or(0, |s| s | 1 << 63), Ordering::Relaxed);
+    }
+
+    #[doc(hidden)] // for tests
+    /// With `Some(seed)`, the solve, the certified solve and the certified values are
+    /// computed on the CPU by the shaders' twins in the arithmetic of an emulated conforming
+    /// device ([`crate::emulate`]: every operation rounded, and every built-in function
+    /// placed, as adversarially as WGSL and Vulkan allow), on the inputs the shaders would
+    /// get; everything else, the scan shader included, runs as usual. S must not change.
+    pub fn emulate_device(&self, seed: Option<u64>) {
+        self.emulate
             .store(seed.map_or(0, |s| s | 1 << 63), Ordering::Relaxed);
     }
 }

@@ -15,6 +15,9 @@ impl GpuOracle<'_> {
     /// within the bound of the value (see [`crate::expr::certified`]; a bound at or above
     /// the precision's [`Accuracy::big`](crate::expr::certified::Accuracy) means unknown).
     pub fn certified_stage(&self, tri: &Triangulation, lattice: &[i32]) -> Result<Vec<f64>> {
+        if let Some(seed) = self.emulated() {
+            return self.emulated_certified(seed, tri, lattice);
+        }
         let pipe = self.f_pipeline(&self.certified, certified_shader, "eval_certified")?;
         self.lattice_stage(Stage::Certified, pipe, tri, lattice, 2 * self.k)
     }
