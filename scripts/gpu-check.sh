@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# The hardware check, for a machine with a GPU (about 4 minutes): the adapter, the GPU test
+# The hardware check, for a machine with a GPU (a few minutes): the adapter, the GPU test
 # suites with ISOMESH_REQUIRE_GPU=1, the reference traces and scans of `isomesh bench` on both
 # backends, and S identity between `--backend cpu` and `--backend gpu` (f64 and f32, scans
 # with and without --device-values) on every preset and on hard cases: boxes 1e-13 inside

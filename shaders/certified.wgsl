@@ -115,7 +115,7 @@ fn cb_exp_claim(x: real) -> real {
 fn cb_exp_raw(a: Cv) -> Cv {
     let y = cb_dev_exp(a.x);
     let top = a.x + a.y;
-    if (!cb_known(a) || !(abs(a.x) <= CB_EXP_MAX) || !(top <= CB_EXP_MAX)) {
+    if (!cb_known(a) || !(abs(a.x) <= CB_EXP_MAX) || !(top <= CB_EXP_MAX) || !(a.x - a.y >= -CB_EXP_MAX)) {
         return cb_unknown(y);
     }
     let prop = cb_dev_exp(top) * (real(1.0) + cb_exp_claim(top)) * a.y;
@@ -145,7 +145,8 @@ fn cb_atan2_raw(y: Cv, x: Cv) -> Cv {
     let t = cb_dev_atan2(y.x, x.x);
     let r = max(abs(x.x), abs(y.x));
     let delta = y.y + x.y;
-    let cut = x.x - x.y < real(0.0) && !(abs(y.x) > y.y);
+    // Near the cut the sign of y decides; one the built-in may flush is not known.
+    let cut = x.x - x.y < real(0.0) && !(abs(y.x) > y.y + CB_BUILTIN_FLUSH);
     if (!cb_known2(y, x) || !(delta < r) || cut || !(r >= CB_ATAN_MIN) || !(r <= CB_ATAN_MAX)) {
         return cb_unknown(t);
     }

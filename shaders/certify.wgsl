@@ -35,24 +35,41 @@ fn certify(l: ptr<function, array<real, NN>>, e: ptr<function, array<real, NN>>,
         }
         rho[i] = up(abs(acc) + GAMMA * mag + eb);
     }
+    // kappa_i >= row sums of |I - R L*|: of |fl(I - R L)| entry by entry, and of the other
+    // two terms through the row sums s = |L| 1 and se = E 1 (the row sum of |R| |L| is
+    // |R| s), both rounded up. z >= |R| rho.
+    var s: array<real, N>;
+    var se: array<real, N>;
+    for (var t = 0u; t < N; t++) {
+        var st = real(0);
+        var sum_e = real(0);
+        for (var j = 0u; j < N; j++) {
+            st = st + abs((*l)[t * N + j]);
+            sum_e = sum_e + (*e)[t * N + j];
+        }
+        s[t] = up(st);
+        se[t] = up(sum_e);
+    }
     var kappa: array<real, N>;
     var z: array<real, N>;
     var zmax = real(0);
     for (var i = 0u; i < N; i++) {
-        var row = real(0);
+        var computed = real(0);
         for (var j = 0u; j < N; j++) {
             var acc = kron(i, j);
-            var mag = kron(i, j);
-            var eb = real(0);
             for (var t = 0u; t < N; t++) {
-                let rit = (*inv)[i * N + t];
-                let ltj = (*l)[t * N + j];
-                acc = acc - rit * ltj;
-                mag = mag + abs(rit) * abs(ltj);
-                eb = eb + abs(rit) * (*e)[t * N + j];
+                acc = acc - (*inv)[i * N + t] * (*l)[t * N + j];
             }
-            row = row + up(abs(acc) + GAMMA * mag + eb);
+            computed = computed + abs(acc);
         }
+        var mag = real(1);
+        var eb = real(0);
+        for (var t = 0u; t < N; t++) {
+            let rit = abs((*inv)[i * N + t]);
+            mag = mag + rit * s[t];
+            eb = eb + rit * se[t];
+        }
+        let row = up(computed) + GAMMA * up(mag) + up(eb);
         kappa[i] = up(row);
         if (!(kappa[i] <= MAX_CONTRACTION)) {
             return UNCERTAIN;

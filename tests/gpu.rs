@@ -549,10 +549,9 @@ fn the_eval_vertices_shader_matches_its_cpu_twin() {
             let o = GpuOracle::new(g.clone(), &p.system, prec).unwrap();
             let got = o.eval_stage(&tri, &lattice).unwrap();
             assert_eq!(got.len(), twin.len());
-            let tol = match o.precision() {
-                Precision::F64 => 1e-13,
-                Precision::F32 => 1e-4,
-            };
+            // What holds on any conforming device: its f64 operations may be as coarse as
+            // f32's (the values reach no output; lavapipe's agree to about 4e-16).
+            let tol = 1e-4;
             let worst = got
                 .iter()
                 .zip(&twin)
@@ -864,10 +863,6 @@ fn the_certified_shader_bounds_the_cpu_values_and_matches_its_twin() {
     }
 }
 
-/// Each function of `shaders/math_f64.wgsl` on lavapipe against Rust's f64 library over its
-/// useful range: the primitives the certified evaluation builds on (exp, ln, sin, cos,
-/// atan2) within the error `Accuracy::f64` claims for them (Rust's own error, under an ulp,
-/// allowed on top), the others within 8 ulps.
 /// `shaders/math_f64.wgsl` (the plain f64 vertex shader's functions, whose values reach no
 /// output: the certified shader uses the f32 built-ins) against Rust's f64 library. Its ulps
 /// are printed; what is asserted holds on any conforming device, where f64 operations may

@@ -333,12 +333,10 @@ fn devices_that_round_as_the_specifications_allow_certify_only_exact_verdicts() 
     }
 }
 
-/// An emulated device certified nothing wrong, and most uniform simplices: nine in ten with
-/// exact values, half with random bounds (a device model that refuses everything is sound
-/// but fails here).
+/// An emulated device certified most uniform simplices (every certified verdict was checked
+/// as it was made): nine in ten with exact values, half with random bounds (a device model
+/// that refuses everything is sound but fails here).
 fn assert_device_sweep(by_kind: Vec<Tally>, bounds: Bounds) {
-    let all = by_kind.iter().fold(Tally::default(), |a, &t| a.add(t));
-    assert_eq!(all.wrong, 0);
     let uniform = by_kind[0];
     assert!(matches!(KINDS[0], Kind::Uniform));
     let share = if bounds == Bounds::Zero { 10 } else { 2 };

@@ -63,7 +63,8 @@ pub struct Accuracy {
     pub sqrt: f64,
     /// for arguments within this range (so that the division meets its claim).
     pub sqrt_range: [f64; 2],
-    /// The device's exp: relative error `exp0 + exp1 |x|`, for |x| at most `exp_max`.
+    /// The device's exp: relative error `exp0 + exp1 |x|`, for |x| at most `exp_max` (where
+    /// f32's exp is normal, so that no flushed result escapes the claim).
     pub exp0: f64,
     /// See `exp0`.
     pub exp1: f64,
@@ -89,6 +90,8 @@ pub struct Accuracy {
     pub atan_abs: f64,
     /// See `atan_rel`.
     pub atan_range: [f64; 2],
+    /// Arguments of the f32 built-ins below this may be flushed to zero, sign and all.
+    pub builtin_flush: f64,
 }
 
 impl Accuracy {
@@ -111,7 +114,7 @@ impl Accuracy {
             // 3 + 2|x| ulp.
             exp0: 6.0 * u,
             exp1: 4.0 * u,
-            exp_max: 88.0,
+            exp_max: 87.0,
             // 3 ulp outside [0.5, 2], absolute 2^-21 inside.
             ln_rel: 6.0 * u,
             ln_abs: 2.0f64.powi(-21),
@@ -124,6 +127,7 @@ impl Accuracy {
             atan_rel: 8192.0 * u,
             atan_abs: 2.0f64.powi(-25),
             atan_range: [2.0f64.powi(-100), 2.0f64.powi(100)],
+            builtin_flush: 2.0f64.powi(-126),
         }
     }
 
@@ -470,7 +474,11 @@ impl<R: DeviceReal> Rules<R> {
         let y = a.v.exp();
         let top = a.v.add(a.e);
         let max = self.c(self.acc.exp_max);
-        if !a.known(&self.acc) || !(a.v.abs() <= max) || !(top <= max) {
+        if !a.known(&self.acc)
+            || !(a.v.abs() <= max)
+            || !(top <= max)
+            || !(a.v.sub(a.e) >= max.neg())
+        {
             return self.unknown(y);
         }
         let claim = |x: R| {
@@ -533,7 +541,8 @@ impl<R: DeviceReal> Rules<R> {
         };
         let delta = y.e.add(x.e);
         let zero = self.c(0.0);
-        let cut = x.v.sub(x.e) < zero && !(y.v.abs() > y.e);
+        // Near the cut the sign of y decides; one the built-in may flush is not known.
+        let cut = x.v.sub(x.e) < zero && !(y.v.abs() > y.e.add(self.c(self.acc.builtin_flush)));
         if !self.known2(y, x) || !(delta < r) || cut || !self.inside(r, self.acc.atan_range) {
             return self.unknown(t);
         }

@@ -252,6 +252,7 @@ fn certified_constants(p: Precision, acc: &Accuracy) -> Result<String> {
         ("CB_ATAN_ABS", acc.atan_abs),
         ("CB_ATAN_MIN", acc.atan_range[0]),
         ("CB_ATAN_MAX", acc.atan_range[1]),
+        ("CB_BUILTIN_FLUSH", acc.builtin_flush),
     ];
     for (name, v) in consts {
         let _ = writeln!(s, "const {name}: real = {};", p.literal(v)?);
