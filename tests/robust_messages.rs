@@ -232,3 +232,49 @@ fn check_prints_equations_in_the_spec_names() {
     assert!(out.contains("boundary: (w - u) >= 0"), "{out}");
     assert!(!out.contains("x1"), "{out}");
 }
+
+/// Boxes that are empty, not finite or wider than the numbers go, seeds that are not
+/// finite, edges near the largest number and scans far beyond the lattice's range: each a
+/// clear error (exit code 1), never a panic, from the command line and from the library.
+#[test]
+fn bad_boxes_seeds_and_scales_are_errors_not_panics() {
+    let dir = Scratch::new("bad-boxes");
+    let cases: [(&[&str], &str); 9] = [
+        (&["--box", "0.5,-0.5"], "lo < hi"),
+        (&["--box", "-nan,1.5"], "lo < hi"),
+        (&["--box", "-3,inf"], "lo < hi"),
+        (
+            &["--box", "-1.5e308,1e308"],
+            "wider than the largest number",
+        ),
+        (&["--seed", "0.2,-inf,0"], "non-finite value"),
+        (&["--seed", "nan,nan,nan"], "non-finite value"),
+        (&["--edge", "3e307"], "edge"),
+        (
+            &["--box", "-2e305,2e305", "--exhaustive"],
+            "exhaustive scan",
+        ),
+        (&["--box", "-4e12,4e12", "--exhaustive"], "exhaustive scan"),
+    ];
+    for (flags, says) in cases {
+        let mut args = vec!["trace", "--preset", "sphere", "--no-complex"];
+        args.extend_from_slice(flags);
+        let o = isomesh(&dir.0, &args);
+        let e = stderr(&o);
+        assert!(!e.contains("panicked"), "{flags:?}: {e}");
+        assert_eq!(o.status.code(), Some(1), "{flags:?}: {e}");
+        assert!(e.contains(says), "{flags:?}: {e}");
+    }
+    // The library refuses the same boxes before any work.
+    for bbox in [
+        vec![[-1.5e308, 1e308]; 3],
+        vec![[2.0, -2.0]; 3],
+        vec![[-2e305, 2e305]; 3],
+    ] {
+        let got = isomesh::Mesher::preset("sphere", &[])
+            .unwrap()
+            .bbox(bbox.clone())
+            .scan();
+        assert!(got.is_err(), "{bbox:?}");
+    }
+}

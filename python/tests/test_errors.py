@@ -95,3 +95,17 @@ def test_mesh_format_that_does_not_hold_the_manifold(tmp_path):
         c.write(tmp_path / "x.docx")
     with pytest.raises(IndexError):
         c.cells(2)
+
+
+def test_boxes_and_seeds_that_are_no_numbers_or_too_wide():
+    # A box wider than the largest float, an empty one, a seed that is not finite: clear
+    # errors, not "internal error".
+    p = isomesh.Problem(["x^2 + y^2 + z^2 - 1"], ambient_dim=3)
+    with pytest.raises(ValueError, match="wider than the largest number"):
+        p.scan(box=[[-1.2e308, 1.2e308]] * 3)
+    with pytest.raises(ValueError, match="lo < hi"):
+        p.scan(box=[[1.5, -1.5]] * 3)
+    with pytest.raises(ValueError, match="exhaustive scan"):
+        p.scan(box=[[-3e306, 3e306]] * 3)
+    with pytest.raises(ValueError, match="non-finite"):
+        isomesh.Problem(["x^2 + y^2 + z^2 - 1"], seeds=[[float("nan"), 0, 0]], ambient_dim=3)

@@ -17,13 +17,16 @@ fn probe_points(p: &Problem, edge: f64) -> Vec<f64> {
             let (lo, hi) = match (&p.bbox, p.seeds.get(i % p.seeds.len().max(1))) {
                 (Some(b), _) => (b[c][0], b[c][1]),
                 (None, Some(s)) => {
-                    // Wide enough to move every coordinate, however fine the edge.
-                    let r = (100.0 * edge).max(1e-6 * s[c].abs().max(1.0));
+                    // Wide enough to move every coordinate, however fine the edge (and no
+                    // wider than the numbers go, however coarse).
+                    let r = (100.0 * edge).max(1e-6 * s[c].abs().max(1.0)).min(1e300);
                     (s[c] - r, s[c] + r)
                 }
                 (None, None) => return pts,
             };
-            pts.push(rng.random_range(lo..=hi));
+            // A blend of the ends: finite for any finite ends, however far apart.
+            let t: f64 = rng.random();
+            pts.push(lo * (1.0 - t) + hi * t);
         }
     }
     pts

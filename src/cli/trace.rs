@@ -316,7 +316,9 @@ fn apply_flags(p: &mut Problem, args: &TraceArgs) -> Result<()> {
         p.triangulation.edge = Some(e);
     }
     if let Some(b) = &args.bbox {
-        p.bbox = Some(box_from_flag(&b.0, d)?);
+        let b = box_from_flag(&b.0, d)?;
+        isomesh::expr::spec::check_box(&b, d)?;
+        p.bbox = Some(b);
     }
     if !args.seeds.is_empty() {
         for NumList(s) in &args.seeds {
@@ -326,6 +328,7 @@ fn apply_flags(p: &mut Problem, args: &TraceArgs) -> Result<()> {
                     s.len()
                 )));
             }
+            isomesh::error::check_finite_in(s, "--seed")?;
         }
         p.seeds = args.seeds.iter().map(|s| s.0.clone()).collect();
     }

@@ -226,7 +226,7 @@ impl Problem {
     }
 }
 
-/// Checks a box: d rows, finite, lo < hi.
+/// Checks a box: d rows, finite, lo < hi, and a width that is a finite number too.
 pub fn check_box(bbox: &[[f64; 2]], d: usize) -> Result<()> {
     if bbox.len() != d {
         return Err(Error::DimensionMismatch(format!(
@@ -238,6 +238,12 @@ pub fn check_box(bbox: &[[f64; 2]], d: usize) -> Result<()> {
         if !(lo.is_finite() && hi.is_finite() && lo < hi) {
             return Err(Error::Spec(format!(
                 "box row {}: [{lo}, {hi}] must be finite with lo < hi",
+                i + 1
+            )));
+        }
+        if !(hi - lo).is_finite() {
+            return Err(Error::Spec(format!(
+                "box row {}: [{lo:e}, {hi:e}] is wider than the largest number (about 1.8e308)",
                 i + 1
             )));
         }

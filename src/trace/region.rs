@@ -32,11 +32,13 @@ pub fn lattice_bounds(tri: &Triangulation, bbox: &[[f64; 2]]) -> (Vec<i64>, Vec<
             radius[i] += col[i].abs() * half;
         }
     }
+    // Saturating: a box far beyond the lattice's range gives bounds far beyond any key's,
+    // which the callers refuse, not an overflow.
     let lo = (0..d)
-        .map(|i| (uc[i] - radius[i]).floor() as i64 - 1)
+        .map(|i| ((uc[i] - radius[i]).floor() as i64).saturating_sub(1))
         .collect();
     let hi = (0..d)
-        .map(|i| (uc[i] + radius[i]).floor() as i64 + 1)
+        .map(|i| ((uc[i] + radius[i]).floor() as i64).saturating_add(1))
         .collect();
     (lo, hi)
 }

@@ -175,15 +175,23 @@ fn near_rows(ctx: &TraceContext, near: &[[f64; 2]]) -> Result<ScanGrid> {
     let n: Vec<usize> = lo
         .iter()
         .zip(&hi)
-        .map(|(l, h)| (h - l + 2) as usize)
+        .map(|(l, h)| h.saturating_sub(*l).saturating_add(2).max(0) as usize)
         .collect();
     let rows_total = n[1..].iter().try_fold(1usize, |a, &b| a.checked_mul(b));
     // Row ids must fit.
     if !matches!(rows_total, Some(r) if r < 1 << 40) {
+        // Bounds beyond i64 saturate: then say so rather than print a product of them.
+        let count = if n.iter().any(|&v| v as u64 >= 1 << 62) {
+            "more than 10^18 lattice points along an axis".to_string()
+        } else {
+            format!(
+                "{:.3e} lattice rows",
+                n[1..].iter().map(|&v| v as f64).product::<f64>()
+            )
+        };
         return Err(Error::Trace(format!(
-            "the exhaustive scan of this box needs {:.3e} lattice rows, over the memory \
-             limit: use a smaller box or a larger edge",
-            n[1..].iter().map(|&v| v as f64).product::<f64>()
+            "the exhaustive scan of this box needs {count}, over the memory limit: use a \
+             smaller box or a larger edge"
         )));
     }
     let mut zero = vec![0i32; d];
