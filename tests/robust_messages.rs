@@ -265,6 +265,16 @@ fn bad_boxes_seeds_and_scales_are_errors_not_panics() {
         assert_eq!(o.status.code(), Some(1), "{flags:?}: {e}");
         assert!(e.contains(says), "{flags:?}: {e}");
     }
+    // An oracle batch that cannot fit: refused before it is allocated.
+    for count in ["3000000000000", "250000000"] {
+        let o = isomesh(
+            &dir.0,
+            &["bench", "--count", count, "--traces", "none", "--k", "1-8"],
+        );
+        let e = stderr(&o);
+        assert_eq!(o.status.code(), Some(1), "--count {count}: {e}");
+        assert!(e.contains("--count"), "--count {count}: {e}");
+    }
     // The library refuses the same boxes before any work.
     for bbox in [
         vec![[-1.5e308, 1e308]; 3],

@@ -73,6 +73,34 @@ pub struct BenchArgs {
     pub png: Option<PathBuf>,
 }
 
+/// Refuses an oracle batch of `count` k-simplices that would not fit: vertex indices are
+/// 32-bit, and the batch (its values, indices, both oracles' verdicts and lambda, the rows
+/// packed for the device) must fit in memory.
+fn check_count(count: usize, k: usize) -> Result<()> {
+    if k == 0 {
+        return Ok(());
+    }
+    let n = k + 1;
+    if count.checked_mul(n).is_none_or(|v| v > u32::MAX as usize) {
+        return Err(Error::Spec(format!(
+            "--count {count}: a batch of {k}-simplices holds at most {} (32-bit vertex indices)",
+            u32::MAX as usize / n
+        )));
+    }
+    let per = (3 * n * k * 8 + 4 * n + 16 * n + 2) as u64;
+    let bytes = (count as u64).saturating_mul(per);
+    let limit = isomesh::memory::default_limit();
+    if bytes > limit {
+        return Err(Error::Spec(format!(
+            "--count {count}: a batch of {k}-simplices needs about {} GB, over the memory \
+             limit of {} GB",
+            bytes / 1_000_000_000,
+            limit / 1_000_000_000
+        )));
+    }
+    Ok(())
+}
+
 /// A list of codimensions.
 #[derive(Clone, Debug)]
 pub struct Ks(pub Vec<usize>);
@@ -105,6 +133,7 @@ pub fn run(args: &BenchArgs) -> Result<()> {
             "--count and --repeats must be at least 1".into(),
         ));
     }
+    check_count(args.count, args.k.0.iter().copied().max().unwrap_or(0))?;
     let threads = args.threads.unwrap_or_else(rayon::current_num_threads);
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(threads.max(1))
