@@ -8,9 +8,9 @@
 //! - `+ - *` are correctly rounded, in a rounding mode the specifications leave open (to
 //!   nearest or toward zero): the emulator returns either neighbour of the exact result (at
 //!   most 1 ulp off; the exact result itself where it is representable). A multiply-add may
-//!   also be fused into one rounding; the emulator does not fuse (the bounds it checks hold
-//!   for fused evaluation too, which only leaves a rounding out, but it does not exercise
-//!   that case).
+//!   also be fused into one rounding: an addition or subtraction whose second operand is
+//!   the result of the operation just before it, a multiplication, takes the exact product
+//!   half the time.
 //! - Subnormal operands and results may be flushed to zero (sign kept): the emulator flips
 //!   a coin for each, results of division and the built-in functions included (comparisons
 //!   see the value unflushed).
@@ -40,6 +40,23 @@ use crate::expr::certified::{DeviceReal, DEVICE_F64_UNIT, U32, U64};
 thread_local! {
     static STREAM: Cell<u64> = const { Cell::new(0x853c_49e6_748f_ea9b) };
     static HABIT: Cell<Habit> = const { Cell::new(Habit::Random) };
+    /// The last multiplication's rounded result (its bits) and exact product (value and
+    /// error term), for a following addition to fuse with.
+    static PRODUCT: Cell<Option<(u64, f64, f64)>> = const { Cell::new(None) };
+}
+
+/// The exact sum of `x` and `y` as `(value, error)`, where `y` may be the previous
+/// multiplication's result: then, half the time, the product before its rounding (a fused
+/// multiply-add). `y_sign` is -1 for a subtraction.
+fn fused_sum(x: f64, y: f64, y_sign: f64) -> (f64, f64) {
+    let last = PRODUCT.with(|p| p.take());
+    match last {
+        Some((bits, p, err)) if y.to_bits() == bits && coin() => {
+            let (s, e) = sum(x, y_sign * p);
+            (s, e + y_sign * err)
+        }
+        _ => sum(x, y_sign * y),
+    }
 }
 
 /// Which side of the exact result a stream rounds to.
@@ -379,13 +396,16 @@ macro_rules! emulated {
             const SPEC_UNIT: f64 = $spec;
             const MIN_NORMAL: f64 = $min;
             fn add(self, b: Self) -> Self {
-                Self::out(sum(self.op(), b.op()))
+                Self::out(fused_sum(self.op(), b.op(), 1.0))
             }
             fn sub(self, b: Self) -> Self {
-                Self::out(sum(self.op(), -b.op()))
+                Self::out(fused_sum(self.op(), b.op(), -1.0))
             }
             fn mul(self, b: Self) -> Self {
-                Self::out(product(self.op(), b.op()))
+                let (p, err) = product(self.op(), b.op());
+                let r = Self::out((p, err));
+                PRODUCT.with(|c| c.set(Some(((r.0 as f64).to_bits(), p, err))));
+                r
             }
             fn div(self, b: Self) -> Self {
                 let (x, y) = (self.op(), b.op());
@@ -514,6 +534,26 @@ mod tests {
             let (q, exact) = (Emu32(x).div(Emu32(y)).0 as f64, x as f64 / 7.0);
             assert!((q - exact).abs() <= 2.5 * ulp32(exact));
         }
+    }
+
+    #[test]
+    fn multiply_adds_are_fused_sometimes() {
+        // (1 + 2^-12)^2 - (1 + 2^-11) is 2^-24 exactly; rounding the product first gives 0
+        // or 2^-23.
+        seed(0);
+        let a = Emu32(1.0 + 2f32.powi(-12));
+        let c = Emu32(1.0 + 2f32.powi(-11));
+        let (mut fused, mut split) = (0, 0);
+        for _ in 0..400 {
+            let r = c.neg().add(a.mul(a)).0;
+            if r == 2f32.powi(-24) {
+                fused += 1;
+            } else {
+                assert!(r == 0.0 || r == 2f32.powi(-23), "{r}");
+                split += 1;
+            }
+        }
+        assert!(fused > 50 && split > 50, "{fused} {split}");
     }
 
     #[test]
