@@ -258,8 +258,9 @@ impl GpuOracle<'_> {
     /// Host side after the shader: keeps the certified misses and decides the rest of
     /// `sent` on the CPU, in one gathered batch. The device's crossings are decided there too,
     /// so that every lambda (and so every point) is the CPU's, whatever the device's
-    /// rounding; a crossing the CPU rejects is counted in [`GpuStats::contradicted`]
-    /// (super::GpuStats). Returns the count of exact decisions and of those the device took.
+    /// rounding; a crossing the CPU rejects is counted in
+    /// [`GpuStats::contradicted`](super::GpuStats::contradicted). Returns the count of exact
+    /// decisions and of those the device took.
     fn settle(
         &self,
         values: &[f64],
