@@ -23,7 +23,11 @@ struct Run {
 
 impl Run {
     fn start(dir: &Scratch, args: &[&str]) -> Run {
-        let mut child = spawn(&dir.0, args);
+        Run::watch(spawn(&dir.0, args))
+    }
+
+    /// Reads the standard error of `child` as it comes.
+    fn watch(mut child: Child) -> Run {
         let lines = Arc::new(Mutex::new(Vec::new()));
         let err = child.stderr.take().unwrap();
         let sink = lines.clone();
@@ -87,6 +91,20 @@ fn number(name: &str) -> i32 {
 /// `complete: false`, stop reason and signal, the sample on disk, no `.partial` file.
 fn stop_at(name: &str, args: &[&str], line: &str, sig: &str) -> serde_json::Value {
     let dir = Scratch::new(&format!("signal-{name}-{sig}"));
+    let run = |all: &[&str]| Run::start(&dir, all);
+    stop_run(&dir, name, args, run, line, &|r: &Run| r.signal(sig), sig)
+}
+
+/// As [`stop_at`], with the run started by `start` and signalled by `send`.
+fn stop_run(
+    dir: &Scratch,
+    name: &str,
+    args: &[&str],
+    start: impl Fn(&[&str]) -> Run,
+    line: &str,
+    send: &dyn Fn(&Run),
+    sig: &str,
+) -> serde_json::Value {
     std::fs::write(
         dir.path("noseed.toml"),
         "ambient_dim = 3\nequations = [\"x1^2 + x2^2 + x3^2 - 1\"]\nbox = [[-1.5, 1.5], \
@@ -95,9 +113,9 @@ fn stop_at(name: &str, args: &[&str], line: &str, sig: &str) -> serde_json::Valu
     .unwrap();
     let mut all = args.to_vec();
     all.extend(["-v", "--out", "s.csv", "--report", "r.json"]);
-    let run = Run::start(&dir, &all);
+    let run = start(&all);
     run.wait_line(line);
-    run.signal(sig);
+    send(&run);
     let (status, _, lines) = run.wait();
     assert_eq!(
         status.code(),
@@ -246,4 +264,85 @@ fn a_second_signal_aborts_promptly() {
         // Aborted in the middle of the write: no mesh, no report, no temporary file.
         assert_eq!(dir.files(), ["s.csv".to_string()], "{lines:?}");
     }
+}
+
+/// A supervisor that signals the process and then its process group (as GNU `timeout`,
+/// shells and job runners do) asks once: the run stops cleanly and keeps what it found, it
+/// does not take the copy for a second signal and abort.
+#[test]
+fn a_signal_to_the_process_and_its_group_stops_it_cleanly() {
+    use std::os::unix::process::CommandExt;
+    for round in 0..4 {
+        let dir = Scratch::new(&format!("group-signal-{round}"));
+        let start = |all: &[&str]| {
+            let child = common::command(&dir.0, all)
+                .process_group(0)
+                .stdout(std::process::Stdio::null())
+                .stderr(std::process::Stdio::piped())
+                .spawn()
+                .unwrap();
+            Run::watch(child)
+        };
+        // Both from one shell, as from one supervisor.
+        let send = |r: &Run| {
+            let pid = r.child.id();
+            let ok = std::process::Command::new("sh")
+                .args(["-c", &format!("kill -TERM {pid}; kill -TERM -{pid}")])
+                .status()
+                .unwrap();
+            assert!(ok.success());
+        };
+        let r = stop_run(
+            &dir,
+            "group",
+            LEVELS,
+            start,
+            "isomesh: level 100,",
+            &send,
+            "TERM",
+        );
+        assert!(r["simplex_count"].as_u64().unwrap() > 0, "{r}");
+    }
+}
+
+/// Under GNU `timeout` (which signals the run and then its own process group) a run past its
+/// time keeps its sample and its report.
+#[test]
+fn a_run_under_timeout_keeps_what_it_found() {
+    let dir = Scratch::new("under-timeout");
+    let exe = env!("CARGO_BIN_EXE_isomesh");
+    let out = std::process::Command::new("timeout")
+        .args([
+            "-s",
+            "TERM",
+            "3",
+            exe,
+            "trace",
+            "--preset",
+            "sphere",
+            "--param",
+            "r=6",
+            "--edge",
+            "0.01",
+            "--threads",
+            "1",
+            "--out",
+            "s.csv",
+            "--report",
+            "r.json",
+        ])
+        .current_dir(&dir.0)
+        .output()
+        .expect("GNU timeout runs");
+    // 124: timeout stopped it.
+    assert_eq!(out.status.code(), Some(124), "{}", common::stderr(&out));
+    let r = report(&dir.path("r.json"));
+    assert_eq!(r["complete"], false, "{r}");
+    assert_eq!(r["signal"], "SIGTERM", "{r}");
+    let sample = std::fs::read_to_string(dir.path("s.csv")).unwrap();
+    assert_eq!(
+        sample.lines().count() - 1,
+        r["simplex_count"].as_u64().unwrap() as usize
+    );
+    assert!(dir.partials().is_empty(), "{:?}", dir.partials());
 }
