@@ -126,7 +126,7 @@ fn main() -> ExitCode {
                     "isomesh-out/torus.ply".into(),
                 ],
                 png: Some("isomesh-out/torus.png".into()),
-                png_size: (1200, 900),
+                png_size: None,
                 project: "auto".into(),
                 report: Some("isomesh-out/torus.json".into()),
                 ..TraceArgs::default()

@@ -130,7 +130,7 @@ fn the_complex_and_the_exports_stay_within_the_memory_limit() {
             "--png",
             "m.png",
             "--png-size",
-            "9000x9000",
+            "8000x8000",
             "--out",
             "m.ply",
         ],

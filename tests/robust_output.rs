@@ -194,10 +194,21 @@ fn output_flags_are_checked_before_tracing() {
         (&["--project", "1,2,9"], "from 1 to 3"),
         (&["--project", "0,1"], "from 1 to 3"),
         (&["--project", "1,2,3,1"], "1 to 3 coordinates"),
-        (&["--png", "p.png", "--png-size", "0x0"], "1 to 16384"),
+        (&["--png", "p.png", "--png-size", "0x0"], "64 to 8192"),
+        (&["--png", "p.png", "--png-size", "9000x600"], "64 to 8192"),
         (
             &["--png", "p.png", "--png-size", "100000x100000"],
-            "1 to 16384",
+            "64 to 8192",
+        ),
+        // Flags that would be ignored.
+        (&["--png-size", "640x480"], "give --png too"),
+        (
+            &["--exhaustive", "--seed", "0,0,1"],
+            "--seed starts a trace",
+        ),
+        (
+            &["--exhaustive", "--search", "100"],
+            "--search starts a trace",
         ),
         (&["--png", "p.png", "--png-size", "12"], "WIDTHxHEIGHT"),
         (&["--no-complex", "--out", "m.ply"], "--no-complex"),
@@ -306,5 +317,110 @@ fn param_overrides_a_spec_and_box_rows_are_checked() {
         let e = stderr(&o);
         assert!(!o.status.success(), "{rows} accepted");
         assert!(e.contains(&format!("has {n} numbers")), "{rows}: {e}");
+    }
+}
+
+/// An output that cannot be written (here a name so long that its temporary file's name is
+/// refused) is reported failed on its own: the outputs after it and the report are written.
+#[test]
+fn a_failed_output_does_not_cost_the_others() {
+    let dir = Scratch::new("one-fails");
+    // 249 characters: a valid name, but not with the temporary file's prefix and suffix.
+    let long = format!("{}.csv", "q".repeat(245));
+    for first in [long.as_str(), "m.ply"] {
+        let mut names = vec![long.as_str(), "good.csv", "m.ply", "good.obj"];
+        names.retain(|n| *n != first);
+        names.insert(0, first);
+        let mut extra = Vec::new();
+        for n in &names {
+            extra.extend(["--out", n]);
+        }
+        extra.extend(["--report", "r.json"]);
+        let o = run(&dir, &extra);
+        let e = stderr(&o);
+        assert!(!o.status.success(), "{first}: {e}");
+        assert!(
+            e.contains("File name too long") || e.contains("name too long"),
+            "{e}"
+        );
+        assert_eq!(
+            dir.files(),
+            ["good.csv", "good.obj", "m.ply", "r.json"],
+            "{first}: {e}"
+        );
+        let r = common::report(&dir.path("r.json"));
+        assert_eq!(r["complete"], false, "{r}");
+        assert_eq!(r["not_written"], serde_json::json!([long]), "{r}");
+        assert!(r["error"].as_str().unwrap().contains("too long"), "{r}");
+        for f in dir.files() {
+            std::fs::remove_file(dir.path(&f)).unwrap();
+        }
+    }
+}
+
+/// `--out -` and `--report -` with standard output closed are refused before the trace (the
+/// bytes would go nowhere); with files only, the run works.
+#[cfg(unix)]
+#[test]
+fn a_closed_standard_output_is_refused_or_left_alone() {
+    let dir = Scratch::new("closed-stdout");
+    let exe = env!("CARGO_BIN_EXE_isomesh");
+    let sh = |args: &str| {
+        std::process::Command::new("sh")
+            .args(["-c", &format!("exec \"$0\" {args} >&-"), exe])
+            .current_dir(&dir.0)
+            .output()
+            .unwrap()
+    };
+    for flag in ["--out", "--report"] {
+        let o = sh(&format!("trace --preset sphere --edge 0.1 {flag} -"));
+        let e = stderr(&o);
+        assert!(!o.status.success(), "{flag}: {e}");
+        assert!(e.contains("standard output is closed"), "{flag}: {e}");
+    }
+    // With files only, the run works and the summary lines go nowhere.
+    let o = sh("trace --preset sphere --edge 0.1 --out s.csv --report r.json");
+    assert!(o.status.success(), "{}", stderr(&o));
+    let sample = std::fs::read_to_string(dir.path("s.csv")).unwrap();
+    let r = common::report(&dir.path("r.json"));
+    assert!(sample.starts_with("x1,") && !sample.contains("wrote"));
+    assert_eq!(
+        sample.lines().count() - 1,
+        r["simplex_count"].as_u64().unwrap() as usize
+    );
+}
+
+/// `isomesh bench` checks its outputs as the trace does, before measuring.
+#[test]
+fn bench_outputs_are_checked_before_measuring() {
+    let dir = Scratch::new("bench-outputs");
+    let cases: &[(&[&str], &str)] = &[
+        (&["--json", "a.x", "--png", "a.x"], "the same file"),
+        (&["--json", "a.json", "--png", "./a.json"], "the same file"),
+        (&["--json", "/dev/null"], "a device"),
+        (&["--png", "."], "a directory"),
+    ];
+    for (flags, what) in cases {
+        let mut args = vec![
+            "bench",
+            "--backend",
+            "cpu",
+            "--k",
+            "1",
+            "--count",
+            "1000",
+            "--traces",
+            "none",
+        ];
+        args.extend_from_slice(flags);
+        let o = common::isomesh(&dir.0, &args);
+        let e = stderr(&o);
+        assert!(!o.status.success(), "{flags:?} accepted");
+        assert!(e.contains(what), "{flags:?}: {e}");
+        assert!(
+            !String::from_utf8_lossy(&o.stdout).contains("simplices/s"),
+            "{flags:?}"
+        );
+        assert!(dir.files().is_empty(), "{flags:?}: {:?}", dir.files());
     }
 }

@@ -11,7 +11,8 @@ use isomesh::bench::{scan_case, timed, trace_case, OracleBatch, ReferenceCase, S
 use isomesh::export::plot::{write_charts, Chart, Series, PALETTE};
 use isomesh::export::write_atomic;
 
-use super::text::say;
+use super::text::{say, shown};
+use isomesh::export::safe::{check_target, FileId};
 use isomesh::expr::ImplicitFunction;
 use isomesh::gpu::{Gpu, GpuOracle, Precision};
 use isomesh::trace::{CpuOracle, Oracle, TraceStats};
@@ -134,6 +135,7 @@ pub fn run(args: &BenchArgs) -> Result<()> {
         ));
     }
     check_count(args.count, args.k.0.iter().copied().max().unwrap_or(0))?;
+    check_outputs(args)?;
     let threads = args.threads.unwrap_or_else(rayon::current_num_threads);
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(threads.max(1))
@@ -145,6 +147,28 @@ pub fn run(args: &BenchArgs) -> Result<()> {
             )
         })?;
     pool.install(|| run_in_pool(args, threads.max(1)))
+}
+
+/// `--json` and `--png`, checked before anything is measured: each absent or a regular file,
+/// and not the same file.
+fn check_outputs(args: &BenchArgs) -> Result<()> {
+    let named: Vec<(&str, &std::path::Path)> = [("--json", &args.json), ("--png", &args.png)]
+        .into_iter()
+        .filter_map(|(flag, p)| p.as_deref().map(|p| (flag, p)))
+        .collect();
+    for (flag, path) in &named {
+        check_target(path).map_err(|e| e.for_flag(flag))?;
+    }
+    if let [(_, a), (_, b)] = named[..] {
+        if FileId::of(a)?.same(&FileId::of(b)?) {
+            return Err(Error::Spec(format!(
+                "--json {} and --png {} are the same file: give each output its own path",
+                shown(&a.display().to_string()),
+                shown(&b.display().to_string())
+            )));
+        }
+    }
+    Ok(())
 }
 
 fn run_in_pool(args: &BenchArgs, threads: usize) -> Result<()> {
@@ -188,9 +212,14 @@ fn run_in_pool(args: &BenchArgs, threads: usize) -> Result<()> {
     let scan_rows = scan_table(args, gpu.as_ref())?;
     let (surface_rows, crossovers) = surface_table(args)?;
 
+    // Each file is written, or fails, on its own: a picture that cannot be drawn does not
+    // cost the JSON.
+    let mut failed = None;
     if let Some(path) = &args.png {
-        plot(path, &oracle_rows, &trace_rows, &surface_rows, &precisions)?;
-        say!("\nwrote {}", path.display());
+        match plot(path, &oracle_rows, &trace_rows, &surface_rows, &precisions) {
+            Ok(()) => say!("\nwrote {}", path.display()),
+            Err(e) => failed = Some(e),
+        }
     }
     if let Some(path) = &args.json {
         let report = json!({
@@ -210,7 +239,7 @@ fn run_in_pool(args: &BenchArgs, threads: usize) -> Result<()> {
         })?;
         say!("wrote {}", path.display());
     }
-    Ok(())
+    failed.map_or(Ok(()), Err)
 }
 
 /// The oracle alone: one row per k and backend.

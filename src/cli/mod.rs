@@ -14,6 +14,35 @@ use isomesh::gpu::wgsl::{eval_shader, Precision};
 use isomesh::Result;
 use text::{num, say, shown};
 
+/// Whether standard output was closed by the caller (`>&-`): `--out -` and `--report -` are
+/// refused then, their bytes would go nowhere.
+///
+/// The Rust runtime reopens a closed standard stream on /dev/null before `main`, read and
+/// write; a shell's `>/dev/null` opens it write-only. So a standard output that is /dev/null
+/// opened for reading and writing was closed.
+pub fn stdout_closed() -> bool {
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::MetadataExt;
+        // SAFETY: fcntl and fstat on descriptor 1 read its state and change nothing; `st` is
+        // a plain C struct that fstat fills.
+        let (flags, rdev) = unsafe {
+            let mut st: libc::stat = std::mem::zeroed();
+            let flags = libc::fcntl(1, libc::F_GETFL);
+            if flags < 0 || libc::fstat(1, &mut st) != 0 {
+                return true;
+            }
+            (flags, st.st_rdev)
+        };
+        let null = std::fs::metadata("/dev/null").map(|m| m.rdev());
+        flags & libc::O_ACCMODE == libc::O_RDWR && null.is_ok_and(|n| n == rdev)
+    }
+    #[cfg(not(unix))]
+    {
+        false
+    }
+}
+
 /// Parses a `name=value` preset parameter.
 pub fn parse_param(s: &str) -> std::result::Result<(String, f64), String> {
     let (n, v) = s

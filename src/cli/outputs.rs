@@ -70,6 +70,16 @@ pub(super) fn plan_outputs(args: &TraceArgs, p: &Problem) -> Result<Plan> {
     if outs.iter().filter(|o| o.stdout).count() > 1 {
         return Err(Error::Spec("--out - is given twice".into()));
     }
+    if (report_to_stdout(args) || outs.iter().any(|o| o.stdout)) && super::stdout_closed() {
+        return Err(Error::Spec(format!(
+            "{} -: standard output is closed; give a path",
+            if report_to_stdout(args) {
+                "--report"
+            } else {
+                "--out"
+            }
+        )));
+    }
     if report_to_stdout(args) && outs.iter().any(|o| o.stdout) {
         return Err(Error::Spec(
             "--out - and --report - both ask for standard output: give one of them a path".into(),
@@ -97,6 +107,24 @@ pub(super) fn plan_outputs(args: &TraceArgs, p: &Problem) -> Result<Plan> {
                 return Err(Error::Spec(format!(
                     "{flag} sets the GPU oracle; the CPU backend (the default) has no use for \
                      it: add --backend gpu or --backend auto, or leave {flag} out"
+                )));
+            }
+        }
+    }
+    // Flags that would be ignored are refused: the run would not be the one asked for.
+    if args.png_size.is_some() && args.png.is_none() {
+        return Err(Error::Spec(
+            "--png-size sets the size of the --png picture: give --png too".into(),
+        ));
+    }
+    if args.exhaustive {
+        for (set, flag) in [
+            (!args.seeds.is_empty(), "--seed"),
+            (args.search.is_some(), "--search"),
+        ] {
+            if set {
+                return Err(Error::Spec(format!(
+                    "{flag} starts a trace; --exhaustive scans the whole box and has no use                      for it: leave one of them out"
                 )));
             }
         }

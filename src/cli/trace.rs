@@ -9,7 +9,7 @@ use std::time::{Duration, Instant};
 use clap::{Args, ValueEnum};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use isomesh::complex::Complex;
-use isomesh::export::picture::Picture;
+use isomesh::export::picture::{Picture, SIDES};
 use isomesh::export::{
     write_atomic, write_mesh_as, write_sample, write_sample_to, Encoding, Mesh,
     OutputFormat as Output,
@@ -124,9 +124,9 @@ pub struct TraceArgs {
     /// Draw the mesh into a PNG picture.
     #[arg(long)]
     pub png: Option<PathBuf>,
-    /// Size of the picture, WIDTHxHEIGHT (1 to 16384 pixels a side).
-    #[arg(long, default_value = "1200x900", value_parser = parse_size)]
-    pub png_size: (usize, usize),
+    /// Size of the picture, WIDTHxHEIGHT (64 to 8192 pixels a side) [default: 1200x900].
+    #[arg(long, value_parser = parse_size)]
+    pub png_size: Option<(usize, usize)>,
     /// How R^d is seen in 3-D for files and pictures: auto (the coordinates up to d = 3,
     /// else pca), pca, or coordinates such as 1,2,4.
     #[arg(long, default_value = "auto")]
@@ -194,10 +194,12 @@ fn parse_size(s: &str) -> std::result::Result<(usize, usize), String> {
         .split_once(['x', 'X'])
         .ok_or_else(|| format!("'{s}' is not WIDTHxHEIGHT (e.g. 1200x900)"))?;
     let p = |t: &str| match t.trim().parse::<usize>() {
-        Ok(n) if (1..=MAX_PNG_SIDE).contains(&n) => Ok(n),
+        Ok(n) if SIDES.contains(&n) => Ok(n),
         Ok(_) => Err(format!(
-            "'{}': each side must be 1 to {MAX_PNG_SIDE} pixels",
-            shown(s)
+            "'{}': each side must be {} to {} pixels",
+            shown(s),
+            SIDES.start(),
+            SIDES.end()
         )),
         Err(_) => Err(format!(
             "'{}' is not WIDTHxHEIGHT (e.g. 1200x900)",
@@ -207,8 +209,8 @@ fn parse_size(s: &str) -> std::result::Result<(usize, usize), String> {
     Ok((p(w)?, p(h)?))
 }
 
-/// Largest side of a picture, in pixels.
-const MAX_PNG_SIDE: usize = 16384;
+/// The size of a picture when --png-size is not given.
+pub const DEFAULT_PNG_SIZE: (usize, usize) = (1200, 900);
 
 /// Parses a positive finite edge length.
 fn parse_edge(s: &str) -> std::result::Result<f64, String> {
@@ -457,18 +459,31 @@ fn run_in_pool(p: &Problem, args: &TraceArgs, plan: &Plan, threads: usize) -> Re
     let wants_mesh =
         args.png.is_some() || plan.outs.iter().any(|o| matches!(o.kind, Output::Mesh(_)));
     let mut written = Vec::new();
+    // Each output is written, or fails, on its own: one that cannot be written (a full disk,
+    // a bad path) is reported and the others, and the report, are still written.
+    let mut failed: Vec<(String, Error)> = Vec::new();
+    let mut attempt = |name: String, result: Result<()>| match result {
+        Ok(()) => true,
+        Err(e) => {
+            failed.push((name, e));
+            false
+        }
+    };
     // The sample first: whatever happens next, it is on disk.
     for o in &plan.outs {
         if let Output::Sample(format) = o.kind {
             if o.stdout {
                 let mut out = std::io::stdout().lock();
-                write_sample_to(&mut out, &sample, format)
+                let result = write_sample_to(&mut out, &sample, format)
                     .and_then(|()| out.flush())
-                    .map_err(|e| Error::io("standard output", e))?;
+                    .map_err(|e| Error::io("standard output", e));
+                attempt("standard output".into(), result);
             } else {
                 phase(&format!("writing {}", shown(&o.path.display().to_string())));
-                write_sample(&o.path, &sample, format)?;
-                written.push(o.path.clone());
+                let result = write_sample(&o.path, &sample, format);
+                if attempt(o.path.display().to_string(), result) {
+                    written.push(o.path.clone());
+                }
             }
         }
     }
@@ -500,44 +515,59 @@ fn run_in_pool(p: &Problem, args: &TraceArgs, plan: &Plan, threads: usize) -> Re
         } else {
             Encoding::Binary
         };
-        let mut write = || -> Result<()> {
-            // Vertices in R^3 and the polygons as triangles, generously.
-            let cells: usize = topo.cells.iter().sum();
-            check_memory("the mesh", 48 * topo.cells[0] + 64 * cells, limit)?;
-            let mesh = Mesh::new(c, Some(sys), projection, &p.name);
-            // A signal lets the file being written finish, and skips the rest.
-            for o in &plan.outs {
-                if let (Output::Mesh(format), false) = (&o.kind, stopping()) {
-                    phase(&format!("writing {}", shown(&o.path.display().to_string())));
-                    write_mesh_as(&o.path, &mesh, *format, encoding)?;
-                    written.push(o.path.clone());
+        // Vertices in R^3 and the polygons as triangles, generously.
+        let cells: usize = topo.cells.iter().sum();
+        match check_memory("the mesh", 48 * topo.cells[0] + 64 * cells, limit) {
+            Err(e) => failure = Some(e),
+            Ok(()) => {
+                let mesh = Mesh::new(c, Some(sys), projection, &p.name);
+                // A signal lets the file being written finish, and skips the rest.
+                for o in &plan.outs {
+                    if let (Output::Mesh(format), false) = (&o.kind, stopping()) {
+                        phase(&format!("writing {}", shown(&o.path.display().to_string())));
+                        let result = write_mesh_as(&o.path, &mesh, *format, encoding);
+                        if attempt(o.path.display().to_string(), result) {
+                            written.push(o.path.clone());
+                        }
+                    }
+                }
+                if let (Some(path), false) = (&args.png, stopping()) {
+                    phase(&format!("writing {}", shown(&path.display().to_string())));
+                    let (w, h) = args.png_size.unwrap_or(DEFAULT_PNG_SIZE);
+                    let result =
+                        check_memory("the picture", w.saturating_mul(h).saturating_mul(16), limit)
+                            .and_then(|()| Picture::render(&mesh, w, h, &caption(&p.name, d, topo)))
+                            .and_then(|pic| pic.write_png(path));
+                    if attempt(path.display().to_string(), result) {
+                        written.push(path.clone());
+                    }
                 }
             }
-            if let (Some(path), false) = (&args.png, stopping()) {
-                phase(&format!("writing {}", shown(&path.display().to_string())));
-                let (w, h) = args.png_size;
-                check_memory("the picture", w.saturating_mul(h).saturating_mul(16), limit)?;
-                let pic = Picture::render(&mesh, w, h, &caption(&p.name, d, topo))?;
-                pic.write_png(path)?;
-                written.push(path.clone());
-            }
-            Ok(())
-        };
-        if let Err(e) = write() {
-            failure = Some(e);
         }
+    }
+    // The first error decides the exit status and the report's error; every failed output is
+    // named on standard error.
+    for (_, e) in failed.iter().skip(usize::from(failure.is_none())) {
+        eprintln!("error: {e}");
+    }
+    let stdout_failed = failed.iter().any(|(name, _)| name == "standard output");
+    if failure.is_none() && !failed.is_empty() {
+        failure = Some(failed.remove(0).1);
     }
     let st = &sample.stats;
     let n = sample.len();
     let peak = memory::peak_bytes();
     let empty = (n == 0 && st.stopped.is_none()).then(|| empty_reason(st, args));
-    let not_written: Vec<String> = args
+    let mut not_written: Vec<String> = args
         .out
         .iter()
         .chain(&args.png)
         .filter(|f| f.as_os_str() != "-" && !written.contains(f))
         .map(|f| f.display().to_string())
         .collect();
+    if stdout_failed {
+        not_written.push("standard output".into());
+    }
     let per_s = if st.elapsed_s > 0.0 {
         n as f64 / st.elapsed_s
     } else {

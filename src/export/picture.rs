@@ -49,13 +49,18 @@ fn unit(a: [f64; 3]) -> [f64; 3] {
     }
 }
 
+/// The sides a picture may have, in pixels.
+pub const SIDES: std::ops::RangeInclusive<usize> = 64..=8192;
+
 impl Picture {
     /// Draws `mesh` at `width` x `height` with `caption` under it, and above it how R^d was
     /// seen when that is not its coordinates ("PCA view", "section by a hyperplane...").
     pub fn render(mesh: &Mesh, width: usize, height: usize, caption: &str) -> Result<Self> {
-        if !(64..=8192).contains(&width) || !(64..=8192).contains(&height) {
+        if !SIDES.contains(&width) || !SIDES.contains(&height) {
             return Err(Error::Output(format!(
-                "picture size {width}x{height}: each side must be 64 to 8192 pixels"
+                "picture size {width}x{height}: each side must be {} to {} pixels",
+                SIDES.start(),
+                SIDES.end()
             )));
         }
         let mut pic = Picture {
