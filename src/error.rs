@@ -45,6 +45,10 @@ pub enum Error {
     /// A malformed or inconsistent spec file.
     #[error("spec: {0}")]
     Spec(String),
+    /// Command-line flags or call arguments that cannot be used together or as given (the
+    /// message names them).
+    #[error("{0}")]
+    Usage(String),
     /// WGSL that naga rejects (a bug in the emitter: the message is naga's).
     #[error("generated WGSL does not validate:\n{0}")]
     Wgsl(String),
@@ -161,9 +165,10 @@ pub enum ErrorKind {
 pub struct ParseError {
     /// What went wrong.
     pub kind: ErrorKind,
-    /// 1-based line.
+    /// 1-based line; 0 when the error is not at a place in the text (a declared name, the
+    /// number of equations).
     pub line: usize,
-    /// 1-based column.
+    /// 1-based column (0 with line 0).
     pub column: usize,
     /// A sentence for people.
     pub message: String,
@@ -182,11 +187,17 @@ impl ParseError {
 
 impl std::fmt::Display for ParseError {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        write!(f, "line {}, column {}", self.line, self.column)?;
-        if !self.context.is_empty() {
-            write!(f, " ({})", self.context)?;
+        match (self.line, self.context.is_empty()) {
+            (0, true) => {}
+            (0, false) => write!(f, "{}: ", self.context)?,
+            (line, true) => write!(f, "line {line}, column {}: ", self.column)?,
+            (line, false) => write!(
+                f,
+                "line {line}, column {} ({}): ",
+                self.column, self.context
+            )?,
         }
-        write!(f, ": {}", self.message)
+        write!(f, "{}", self.message)
     }
 }
 

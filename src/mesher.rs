@@ -29,7 +29,7 @@ use crate::export::{write_sample, OutputFormat, Projection};
 use crate::expr::{preset, ImplicitFunction, Problem, Spec, TriangulationSpec};
 use crate::memory;
 use crate::report::{BackendInfo, ComplexReport, Report, RunInfo};
-use crate::trace::{self, CpuOracle, Oracle, Progress, Sample, TraceOptions};
+use crate::trace::{self, checks, CpuOracle, Oracle, Progress, Sample, TraceOptions};
 use crate::triangulation::{Triangulation, TriangulationKind};
 
 /// Which oracle decides the intersection tests.
@@ -335,17 +335,42 @@ impl Mesher {
     }
 
     /// Traces M from the seeds (and a box search where asked or where there is no seed).
-    /// An early stop (cancel flag, memory limit) returns what was found, marked incomplete.
+    /// An early stop (cancel flag, memory limit) returns what was found, marked incomplete;
+    /// a run that finds no crossed simplex is an [`Error::Trace`] saying why.
     pub fn trace(&self) -> Result<Manifold> {
         self.run(false)
     }
 
-    /// Scans every k-simplex in the box (no seed needed; every component is found).
+    /// Scans every k-simplex in the box (no seed needed; every component is found). As with
+    /// [`Mesher::trace`], finding nothing is an error.
     pub fn scan(&self) -> Result<Manifold> {
         self.run(true)
     }
 
+    /// [`Mesher::scan`] of a shard's box, where finding nothing is a result.
+    pub(crate) fn scan_part(&self) -> Result<Manifold> {
+        self.run_any(true)
+    }
+
     fn run(&self, exhaustive: bool) -> Result<Manifold> {
+        let m = self.run_any(exhaustive)?;
+        if let Some((i, x)) = &m.sample.stats.zero_region {
+            return Err(checks::region_error(*i, x));
+        }
+        // Nothing found, and not for want of time or memory: an error, as on the command
+        // line, rather than an empty manifold that looks like a result.
+        if m.is_empty() && m.complete() {
+            return Err(Error::Trace(
+                m.sample
+                    .stats
+                    .why_nothing_found(exhaustive, !self.seeds.is_empty()),
+            ));
+        }
+        Ok(m)
+    }
+
+    /// A trace or scan, whatever it finds.
+    fn run_any(&self, exhaustive: bool) -> Result<Manifold> {
         if let Some(0) = self.threads {
             return Err(Error::Spec("threads must be at least 1".into()));
         }
@@ -362,6 +387,15 @@ impl Mesher {
     fn run_in_pool(&self, exhaustive: bool) -> Result<Manifold> {
         let tri = self.build_triangulation()?;
         let f = &*self.function;
+        checks::check_not_zero(f, self.bbox.as_deref(), &self.seeds, tri.edge())?;
+        let singular_seeds = if exhaustive {
+            Vec::new()
+        } else {
+            checks::singular_seeds(f, &self.seeds, tri.edge())
+                .into_iter()
+                .map(|(i, _)| i)
+                .collect()
+        };
         let progress = self.progress.clone();
         let report_progress = move |p: &Progress| {
             if let Some(cb) = &progress {
@@ -420,7 +454,7 @@ impl Mesher {
             peak_memory_bytes: peak,
             max_memory_bytes: self.max_memory,
             suspect_crossings: sample.suspect_crossings(f),
-            singular_seeds: Vec::new(),
+            singular_seeds,
         };
         Ok(Manifold {
             function: self.function.clone(),

@@ -548,7 +548,7 @@ fn presets_take_parameters_and_reject_unknown_ones() {
     assert!((p.seeds[0][0] - 2.0).abs() < 1e-12);
     assert!(matches!(
         preset("sphere", &[("q".into(), 1.0)]),
-        Err(Error::Spec(_))
+        Err(Error::Usage(_))
     ));
     assert!(matches!(
         preset("sphere", &[("m".into(), 3.0)]),

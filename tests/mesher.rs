@@ -357,3 +357,78 @@ fn the_result_and_its_report_match_the_command_line() {
         }
     }
 }
+
+/// A piece of M lying in a face of the box is kept whole: the box is closed up to the
+/// rounding of the crossing points, so the plane is one disc (Euler characteristic 1) at
+/// either face, as it is with the face moved a little outside, not scraps.
+#[test]
+fn a_manifold_in_a_face_of_the_box_is_kept_whole() {
+    for (plane, row) in [(0.3, [0.3, 1.7]), (1.7, [0.3, 1.7]), (-2.25, [-2.25, 4.0])] {
+        for trace in [true, false] {
+            let text = format!(
+                "ambient_dim = 3\nequations = [\"x2 - ({plane})\"]\n\
+                 box = [[-1, 1], {row:?}, [-0.5, 0.5]]\ntriangulation = {{ edge = 0.17 }}\n"
+            );
+            let m = Mesher::from_toml(&text, "face").unwrap();
+            let got = if trace { m.trace() } else { m.scan() }.unwrap();
+            let t = got.topology().unwrap();
+            assert_eq!(
+                (t.components, t.euler_characteristic, t.manifold),
+                (1, 1, true),
+                "x2 = {plane} in {row:?}, trace {trace}"
+            );
+        }
+    }
+}
+
+/// A run that finds nothing (no zero, or f NaN everywhere), and was not stopped, is an error
+/// that says why, not an empty result that looks complete.
+#[test]
+fn finding_nothing_is_an_error_that_says_why() {
+    for (eq, says) in [
+        ("x1^2 + x2^2 + x3^2 + 0.5", "no crossed simplex was found"),
+        ("sqrt(-1 - x1^2) + x2", "NaN or infinite"),
+    ] {
+        let text = format!(
+            "ambient_dim = 3\nequations = [\"{eq}\"]\nbox = [[-1.5, 1.5], [-1.5, 1.5], [-1.5, 1.5]]\n"
+        );
+        let m = Mesher::from_toml(&text, "none").unwrap();
+        for got in [m.trace(), m.scan()] {
+            let Err(e) = got else {
+                panic!("{eq}: found something")
+            };
+            assert!(e.to_string().contains(says), "{eq}: {e}");
+        }
+    }
+}
+
+/// f identically 0 on a region (here a half-space of the box) is found where the trace or
+/// scan meets it, not only at probe points: an error naming an equation and a point, not a
+/// mesh that looks like a manifold.
+#[test]
+fn f_vanishing_on_a_region_is_an_error() {
+    for eq in ["max(x2 + 0.35, 0)", "min(x1 - 0.6, 0) * (x3^2 + 1)"] {
+        let text = format!(
+            "ambient_dim = 3\nequations = [\"{eq}\"]\nbox = [[-1, 1], [-1, 1], [-1, 1]]\n\
+             triangulation = {{ edge = 0.21 }}\n"
+        );
+        let m = Mesher::from_toml(&text, "region").unwrap();
+        for got in [m.trace(), m.scan()] {
+            let Err(e) = got else {
+                panic!("{eq}: accepted")
+            };
+            assert!(
+                e.to_string().contains("equation 1 is identically 0 around"),
+                "{eq}: {e}"
+            );
+        }
+    }
+    // A zero set that only touches such a region elsewhere is fine.
+    let m = Mesher::from_toml(
+        "ambient_dim = 3\nequations = [\"x1^2 + x2^2 + x3^2 - 0.5\"]\n\
+         box = [[-1, 1], [-1, 1], [-1, 1]]\n",
+        "sphere",
+    )
+    .unwrap();
+    assert!(m.scan().is_ok());
+}

@@ -239,7 +239,7 @@ fn check_prints_equations_in_the_spec_names() {
 #[test]
 fn bad_boxes_seeds_and_scales_are_errors_not_panics() {
     let dir = Scratch::new("bad-boxes");
-    let cases: [(&[&str], &str); 9] = [
+    let cases: [(&[&str], &str); 8] = [
         (&["--box", "0.5,-0.5"], "lo < hi"),
         (&["--box", "-nan,1.5"], "lo < hi"),
         (&["--box", "-3,inf"], "lo < hi"),
@@ -249,7 +249,6 @@ fn bad_boxes_seeds_and_scales_are_errors_not_panics() {
         ),
         (&["--seed", "0.2,-inf,0"], "non-finite value"),
         (&["--seed", "nan,nan,nan"], "non-finite value"),
-        (&["--edge", "3e307"], "edge"),
         (
             &["--box", "-2e305,2e305", "--exhaustive"],
             "exhaustive scan",
@@ -264,6 +263,14 @@ fn bad_boxes_seeds_and_scales_are_errors_not_panics() {
         assert!(!e.contains("panicked"), "{flags:?}: {e}");
         assert_eq!(o.status.code(), Some(1), "{flags:?}: {e}");
         assert!(e.contains(says), "{flags:?}: {e}");
+    }
+    // Edges beyond the lattice's range: refused as the flag is read (a usage error, 2).
+    for edge in ["3e307", "7e-311", "2e150"] {
+        let args = ["trace", "--preset", "sphere", "--edge", edge];
+        let o = isomesh(&dir.0, &args);
+        let e = stderr(&o);
+        assert_eq!(o.status.code(), Some(2), "--edge {edge}: {e}");
+        assert!(e.contains("out of range"), "--edge {edge}: {e}");
     }
     // An oracle batch that cannot fit: refused before it is allocated.
     for count in ["3000000000000", "250000000"] {
@@ -287,4 +294,102 @@ fn bad_boxes_seeds_and_scales_are_errors_not_panics() {
             .scan();
         assert!(got.is_err(), "{bbox:?}");
     }
+}
+
+/// Each message names what is at fault as the user wrote it: a flag is not called a spec,
+/// a declared name or a count of equations has no line and column, a parameter may not take
+/// a coordinate's name (it would silently replace the coordinate), and sizes below a byte or
+/// edges beyond the lattice's range are refused when read.
+#[test]
+fn messages_name_the_flag_or_name_at_fault() {
+    let dir = Scratch::new("fault-names");
+    let spec = |name: &str, text: &str| {
+        std::fs::write(dir.path(name), text).unwrap();
+        name.to_string()
+    };
+    let sphere = "equations = [\"x1^2 + x2^2 + x3^2 - 1\"]\nbox = [[-2, 2], [-2, 2], [-2, 2]]\n";
+    let cases: Vec<(Vec<String>, &str)> = vec![
+        (
+            vec![
+                "--preset".into(),
+                "sphere".into(),
+                "--box".into(),
+                "3,-3".into(),
+            ],
+            "--box: ",
+        ),
+        (
+            vec![
+                "--preset".into(),
+                "torus".into(),
+                "--param".into(),
+                "nope=2".into(),
+            ],
+            "preset 'torus' has no parameter 'nope'",
+        ),
+        (
+            vec![spec(
+                "p.toml",
+                &format!("ambient_dim = 3\nparameters = {{ x2 = 0.5 }}\n{sphere}"),
+            )],
+            "always name the coordinates (x2 is coordinate 2)",
+        ),
+        (
+            vec![spec(
+                "v.toml",
+                &format!("variables = [\"x2\", \"x1\", \"x3\"]\n{sphere}"),
+            )],
+            "always name the coordinates",
+        ),
+        (
+            vec![spec(
+                "k.toml",
+                "ambient_dim = 2\nequations = [\"x1\", \"x2\", \"x1 + x2\"]\n",
+            )],
+            "3 equations in 2 variables",
+        ),
+        (
+            vec![spec(
+                "m.toml",
+                &format!(
+                    "ambient_dim = 3\n{sphere}[triangulation]\nkind = \"custom\"\nmatrix = \
+                     [[3e250, 0, 0], [0, 1, 0], [0, 0, 1]]\n"
+                ),
+            )],
+            "out of range",
+        ),
+    ];
+    for (args, says) in cases {
+        let mut all: Vec<&str> = vec!["trace", "-q"];
+        all.extend(args.iter().map(String::as_str));
+        let o = isomesh(&dir.0, &all);
+        let e = stderr(&o);
+        assert_eq!(o.status.code(), Some(1), "{args:?}: {e}");
+        assert!(e.contains(says), "{args:?}: {e}");
+        assert!(
+            !e.contains("spec: --") && !e.contains("spec: preset"),
+            "{args:?}: {e}"
+        );
+        assert!(!e.contains("line 1, column 1"), "{args:?}: {e}");
+    }
+    // A parameter with a coordinate's name is refused whatever the dimension; other names
+    // that start with x are fine.
+    let o = isomesh(
+        &dir.0,
+        &[
+            "trace",
+            "-q",
+            &spec(
+                "ok.toml",
+                &format!("ambient_dim = 3\nparameters = {{ xa = 1, x0y = 2 }}\n{sphere}"),
+            ),
+        ],
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let o = isomesh(
+        &dir.0,
+        &["trace", "--preset", "sphere", "--max-memory", "0.25"],
+    );
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("less than one byte"), "{}", stderr(&o));
 }

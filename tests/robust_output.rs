@@ -424,3 +424,37 @@ fn bench_outputs_are_checked_before_measuring() {
         assert!(dir.files().is_empty(), "{flags:?}: {:?}", dir.files());
     }
 }
+
+/// f identically 0 on a region of the box: the run fails with a message naming a point,
+/// and keeps its sample and report (no mesh is made of it).
+#[test]
+fn f_vanishing_on_a_region_fails_and_keeps_the_sample() {
+    let dir = Scratch::new("zero-region");
+    std::fs::write(
+        dir.path("z.toml"),
+        "ambient_dim = 3\nequations = [\"max(0.4 - x3, 0)\"]\nbox = [[-1, 1], [-1, 1], [-1, 1]]\n",
+    )
+    .unwrap();
+    for scan in [false, true] {
+        let mut args = vec![
+            "trace", "z.toml", "-q", "--edge", "0.19", "--out", "s.csv", "--out", "m.ply",
+            "--report", "r.json",
+        ];
+        if scan {
+            args.push("--exhaustive");
+        }
+        let o = common::isomesh(&dir.0, &args);
+        let e = stderr(&o);
+        assert_eq!(o.status.code(), Some(1), "{e}");
+        assert!(e.contains("identically 0 around"), "{e}");
+        assert_eq!(dir.files(), ["r.json", "s.csv", "z.toml"], "{e}");
+        let r = common::report(&dir.path("r.json"));
+        assert_eq!(r["complete"], false, "{r}");
+        assert!(
+            r["error"].as_str().unwrap().contains("identically 0"),
+            "{r}"
+        );
+        std::fs::remove_file(dir.path("s.csv")).unwrap();
+        std::fs::remove_file(dir.path("r.json")).unwrap();
+    }
+}

@@ -109,3 +109,37 @@ def test_boxes_and_seeds_that_are_no_numbers_or_too_wide():
         p.scan(box=[[-3e306, 3e306]] * 3)
     with pytest.raises(ValueError, match="non-finite"):
         isomesh.Problem(["x^2 + y^2 + z^2 - 1"], seeds=[[float("nan"), 0, 0]], ambient_dim=3)
+
+
+def test_finding_nothing_is_an_error_not_an_empty_result():
+    # As on the command line: no zero in the box, or f NaN everywhere, raises and says why.
+    p = isomesh.Problem(["x^2 + y^2 + z^2 + 0.75"], ambient_dim=3)
+    with pytest.raises(ValueError, match="no crossed simplex was found"):
+        p.scan(box=[[-1.25, 1.25]] * 3)
+    with pytest.raises(ValueError, match="no crossed simplex was found"):
+        p.trace(box=[[-1.25, 1.25]] * 3)
+    nan = isomesh.Problem(["sqrt(-3 - x^2) + y"], ambient_dim=3)
+    with pytest.raises(ValueError, match="NaN or infinite"):
+        nan.scan(box=[[-1, 1]] * 3)
+
+
+def test_zero_equations_and_zero_regions_are_errors():
+    with pytest.raises(ValueError, match="identically 0"):
+        isomesh.Problem(["0 * x + y - y"], ambient_dim=3).scan(box=[[-1, 1]] * 3)
+    half = isomesh.Problem(["max(y - 0.3, 0)"], ambient_dim=3)
+    with pytest.raises(ValueError, match="identically 0 around"):
+        half.scan(box=[[-1, 1]] * 3)
+    with pytest.raises(ValueError, match="identically 0 around"):
+        half.trace(box=[[-1, 1]] * 3)
+
+
+def test_a_parameter_may_not_take_a_coordinates_name():
+    with pytest.raises(ValueError, match="always name the coordinates"):
+        isomesh.Problem(["x1^2 + x2^2 + x3^2 - 1"], ambient_dim=3, parameters={"x2": 0.0})
+
+
+def test_a_manifold_in_a_face_of_the_box_is_kept_whole():
+    p = isomesh.Problem(["y - 0.45"], ambient_dim=3)
+    for box in ([[-1, 1], [0.45, 1.3], [-1, 1]], [[-1, 1], [-0.2, 0.45], [-1, 1]]):
+        topo = p.scan(box=box).complex().topology
+        assert (topo["components"], topo["euler_characteristic"]) == (1, 1), box

@@ -83,7 +83,7 @@ fn check_count(count: usize, k: usize) -> Result<()> {
     }
     let n = k + 1;
     if count.checked_mul(n).is_none_or(|v| v > u32::MAX as usize) {
-        return Err(Error::Spec(format!(
+        return Err(Error::Usage(format!(
             "--count {count}: a batch of {k}-simplices holds at most {} (32-bit vertex indices)",
             u32::MAX as usize / n
         )));
@@ -92,7 +92,7 @@ fn check_count(count: usize, k: usize) -> Result<()> {
     let bytes = (count as u64).saturating_mul(per);
     let limit = isomesh::memory::default_limit();
     if bytes > limit {
-        return Err(Error::Spec(format!(
+        return Err(Error::Usage(format!(
             "--count {count}: a batch of {k}-simplices needs about {} GB, over the memory \
              limit of {} GB",
             bytes / 1_000_000_000,
@@ -130,7 +130,7 @@ fn parse_ks(s: &str) -> std::result::Result<Ks, String> {
 /// Runs the benchmark in a pool of the requested size.
 pub fn run(args: &BenchArgs) -> Result<()> {
     if args.count == 0 || args.repeats == 0 {
-        return Err(Error::Spec(
+        return Err(Error::Usage(
             "--count and --repeats must be at least 1".into(),
         ));
     }
@@ -161,7 +161,7 @@ fn check_outputs(args: &BenchArgs) -> Result<()> {
     }
     if let [(_, a), (_, b)] = named[..] {
         if FileId::of(a)?.same(&FileId::of(b)?) {
-            return Err(Error::Spec(format!(
+            return Err(Error::Usage(format!(
                 "--json {} and --png {} are the same file: give each output its own path",
                 shown(&a.display().to_string()),
                 shown(&b.display().to_string())
@@ -715,7 +715,7 @@ fn plot(
         });
     }
     if charts.is_empty() {
-        return Err(Error::Spec(
+        return Err(Error::Usage(
             "--png: nothing was measured (--k 0 and --traces none)".into(),
         ));
     }

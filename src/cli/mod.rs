@@ -73,14 +73,14 @@ pub fn load(
                 match spec.parameters.get_mut(n) {
                     Some(slot) if v.is_finite() => *slot = *v,
                     Some(_) => {
-                        return Err(isomesh::Error::Spec(format!(
+                        return Err(isomesh::Error::Usage(format!(
                             "--param {}: the value is not finite",
                             shown(n)
                         )))
                     }
                     None => {
                         let names: Vec<&str> = spec.parameters.keys().map(String::as_str).collect();
-                        return Err(isomesh::Error::Spec(format!(
+                        return Err(isomesh::Error::Usage(format!(
                             "--param {}: {} has no such parameter ({})",
                             shown(n),
                             path.display(),
@@ -97,7 +97,7 @@ pub fn load(
         }
         (None, Some(n)) => preset(&n, params),
         (None, None) => preset("torus", params),
-        (Some(_), Some(_)) => Err(isomesh::Error::Spec(
+        (Some(_), Some(_)) => Err(isomesh::Error::Usage(
             "give a spec file or --preset, not both".into(),
         )),
     }

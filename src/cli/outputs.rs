@@ -36,7 +36,7 @@ pub(super) struct Plan {
 pub(super) fn plan_outputs(args: &TraceArgs, p: &Problem) -> Result<Plan> {
     let (d, k) = (p.system.ambient_dim(), p.system.codim());
     if args.format.is_some() && args.out.is_empty() {
-        return Err(Error::Spec(
+        return Err(Error::Usage(
             "--format sets the format of --out files: give --out too".into(),
         ));
     }
@@ -52,7 +52,7 @@ pub(super) fn plan_outputs(args: &TraceArgs, p: &Problem) -> Result<Plan> {
         };
         match &kind {
             Output::Mesh(_) if stdout => {
-                return Err(Error::Spec(
+                return Err(Error::Usage(
                     "--out -: standard output takes the sample only (csv or xyz); write mesh \
                      files to a path"
                         .into(),
@@ -68,10 +68,10 @@ pub(super) fn plan_outputs(args: &TraceArgs, p: &Problem) -> Result<Plan> {
         });
     }
     if outs.iter().filter(|o| o.stdout).count() > 1 {
-        return Err(Error::Spec("--out - is given twice".into()));
+        return Err(Error::Usage("--out - is given twice".into()));
     }
     if (report_to_stdout(args) || outs.iter().any(|o| o.stdout)) && super::stdout_closed() {
-        return Err(Error::Spec(format!(
+        return Err(Error::Usage(format!(
             "{} -: standard output is closed; give a path",
             if report_to_stdout(args) {
                 "--report"
@@ -81,19 +81,19 @@ pub(super) fn plan_outputs(args: &TraceArgs, p: &Problem) -> Result<Plan> {
         )));
     }
     if report_to_stdout(args) && outs.iter().any(|o| o.stdout) {
-        return Err(Error::Spec(
+        return Err(Error::Usage(
             "--out - and --report - both ask for standard output: give one of them a path".into(),
         ));
     }
     if args.png.as_ref().is_some_and(|p| p.as_os_str() == "-") {
-        return Err(Error::Spec(
+        return Err(Error::Usage(
             "--png -: a picture is written to a file; give a path".into(),
         ));
     }
     let projection = Projection::parse(&args.project, d)?;
     let wants_mesh = args.png.is_some() || outs.iter().any(|o| matches!(o.kind, Output::Mesh(_)));
     if args.no_complex && wants_mesh {
-        return Err(Error::Spec(
+        return Err(Error::Usage(
             "--no-complex: mesh files and pictures need the cell complex".into(),
         ));
     }
@@ -104,7 +104,7 @@ pub(super) fn plan_outputs(args: &TraceArgs, p: &Problem) -> Result<Plan> {
             (args.device_values, "--device-values"),
         ] {
             if set {
-                return Err(Error::Spec(format!(
+                return Err(Error::Usage(format!(
                     "{flag} sets the GPU oracle; the CPU backend (the default) has no use for \
                      it: add --backend gpu or --backend auto, or leave {flag} out"
                 )));
@@ -113,7 +113,7 @@ pub(super) fn plan_outputs(args: &TraceArgs, p: &Problem) -> Result<Plan> {
     }
     // Flags that would be ignored are refused: the run would not be the one asked for.
     if args.png_size.is_some() && args.png.is_none() {
-        return Err(Error::Spec(
+        return Err(Error::Usage(
             "--png-size sets the size of the --png picture: give --png too".into(),
         ));
     }
@@ -123,14 +123,15 @@ pub(super) fn plan_outputs(args: &TraceArgs, p: &Problem) -> Result<Plan> {
             (args.search.is_some(), "--search"),
         ] {
             if set {
-                return Err(Error::Spec(format!(
-                    "{flag} starts a trace; --exhaustive scans the whole box and has no use                      for it: leave one of them out"
+                return Err(Error::Usage(format!(
+                    "{flag} starts a trace; --exhaustive scans the whole box and has no use \
+                     for it: leave one of them out"
                 )));
             }
         }
     }
     if args.device_values && !args.exhaustive {
-        return Err(Error::Spec(
+        return Err(Error::Usage(
             "--device-values applies to exhaustive scans (a trace takes f's values from the \
              CPU): add --exhaustive, or leave --device-values out"
                 .into(),
@@ -153,7 +154,7 @@ pub(super) fn plan_outputs(args: &TraceArgs, p: &Problem) -> Result<Plan> {
         check_target(path).map_err(|e| e.for_flag(flag))?;
         let id = FileId::of(path)?;
         if let Some((other, other_path, _)) = files.iter().find(|f| f.2.same(&id)) {
-            return Err(Error::Spec(format!(
+            return Err(Error::Usage(format!(
                 "{flag} {} and {other} {} are the same file: give each output its own path",
                 shown(&path.display().to_string()),
                 shown(&other_path.display().to_string())
@@ -164,7 +165,7 @@ pub(super) fn plan_outputs(args: &TraceArgs, p: &Problem) -> Result<Plan> {
     if let Some(spec) = &args.spec {
         let id = FileId::of(spec)?;
         if let Some((flag, path, _)) = files.iter().find(|f| f.2.same(&id)) {
-            return Err(Error::Spec(format!(
+            return Err(Error::Usage(format!(
                 "{flag} {} is the input spec: it would be overwritten; give another path",
                 shown(&path.display().to_string())
             )));
@@ -177,7 +178,7 @@ pub(super) fn plan_outputs(args: &TraceArgs, p: &Problem) -> Result<Plan> {
 fn output_kind(path: &std::path::Path, format: Option<&str>) -> Result<Output> {
     match format {
         Some(f) => Output::from_name(f).ok_or_else(|| {
-            Error::Spec(format!(
+            Error::Usage(format!(
                 "--format {}: use {}",
                 shown(f),
                 isomesh::export::FORMAT_NAMES

@@ -19,10 +19,10 @@ use isomesh::gpu::{Gpu, GpuOracle, Precision};
 use isomesh::memory;
 use isomesh::report::{BackendInfo, ComplexReport, Report, RunInfo};
 use isomesh::trace::{exhaustive, trace, CpuOracle, Oracle, Progress, TraceOptions};
-use isomesh::triangulation::TriangulationKind;
+use isomesh::triangulation::{TriangulationKind, EDGE_RANGE};
 use isomesh::{Error, Result};
 
-use super::checks::{check_not_zero, singular_seeds};
+use super::checks::singular_seeds;
 use super::outputs::{plan_outputs, report_to_stdout, Plan};
 use super::text::{caption, num, say, shown, summary};
 use super::{load, signals};
@@ -185,7 +185,14 @@ pub fn parse_bytes(s: &str) -> std::result::Result<u64, String> {
     if !(v.is_finite() && v > 0.0) {
         return Err(format!("'{}' must be positive", shown(s)));
     }
-    Ok((v * mult as f64) as u64)
+    let bytes = v * mult as f64;
+    if bytes < 1.0 {
+        return Err(format!(
+            "'{}' is less than one byte (sizes are bytes, or K, M, G, T)",
+            shown(s)
+        ));
+    }
+    Ok(bytes as u64)
 }
 
 /// Parses WIDTHxHEIGHT.
@@ -215,7 +222,13 @@ pub const DEFAULT_PNG_SIZE: (usize, usize) = (1200, 900);
 /// Parses a positive finite edge length.
 fn parse_edge(s: &str) -> std::result::Result<f64, String> {
     match s.trim().parse::<f64>() {
-        Ok(v) if v.is_finite() && v > 0.0 => Ok(v),
+        Ok(v) if EDGE_RANGE.contains(&v) => Ok(v),
+        Ok(v) if v.is_finite() && v > 0.0 => Err(format!(
+            "{} is out of range: the edge must be from {:e} to {:e}",
+            num(v),
+            EDGE_RANGE.start(),
+            EDGE_RANGE.end()
+        )),
         Ok(v) => Err(format!(
             "{} is not a length: the edge must be positive and finite",
             num(v)
@@ -270,7 +283,7 @@ pub fn run(args: &TraceArgs) -> Result<()> {
     let plan = plan_outputs(args, &problem)?;
     let mut threads = args.threads.unwrap_or_else(rayon::current_num_threads);
     if threads == 0 {
-        return Err(Error::Spec("--threads must be at least 1".into()));
+        return Err(Error::Usage("--threads must be at least 1".into()));
     }
     let cap = max_threads();
     if threads > cap {
@@ -296,7 +309,7 @@ fn apply_flags(p: &mut Problem, args: &TraceArgs) -> Result<()> {
     let d = p.dim();
     if let Some(kind) = args.triangulation {
         if kind == TriangulationKind::Custom {
-            return Err(Error::Spec(
+            return Err(Error::Usage(
                 "--triangulation custom needs a matrix: set it in a spec file".into(),
             ));
         }
@@ -319,7 +332,10 @@ fn apply_flags(p: &mut Problem, args: &TraceArgs) -> Result<()> {
     }
     if let Some(b) = &args.bbox {
         let b = box_from_flag(&b.0, d)?;
-        isomesh::expr::spec::check_box(&b, d)?;
+        isomesh::expr::spec::check_box(&b, d).map_err(|e| match e {
+            Error::Spec(m) => Error::Usage(format!("--box: {m}")),
+            e => e,
+        })?;
         p.bbox = Some(b);
     }
     if !args.seeds.is_empty() {
@@ -419,7 +435,7 @@ fn run_in_pool(p: &Problem, args: &TraceArgs, plan: &Plan, threads: usize) -> Re
         ..TraceOptions::default()
     };
     let limit = opts.max_memory;
-    check_not_zero(p, &tri)?;
+    isomesh::trace::checks::check_not_zero(&p.system, p.bbox.as_deref(), &p.seeds, tri.edge())?;
     let singular_seeds = singular_seeds(p, tri.edge(), args.quiet);
     let base = memory::live_bytes();
     let sample = if args.exhaustive {
@@ -487,9 +503,14 @@ fn run_in_pool(p: &Problem, args: &TraceArgs, plan: &Plan, threads: usize) -> Re
             }
         }
     }
-    // A failure past this point still leaves the sample and the report on disk.
-    let mut failure: Option<Error> = None;
-    let complex = if args.no_complex || sample.is_empty() || stopping() {
+    // A failure past this point still leaves the sample and the report on disk. f vanishing
+    // on a region is one: the sample is kept, no mesh of it is made.
+    let mut failure: Option<Error> = sample
+        .stats
+        .zero_region
+        .as_ref()
+        .map(|(i, x)| isomesh::trace::checks::region_error(*i, x));
+    let complex = if args.no_complex || sample.is_empty() || stopping() || failure.is_some() {
         None
     } else {
         phase("complex: building the cell complex");
@@ -557,7 +578,8 @@ fn run_in_pool(p: &Problem, args: &TraceArgs, plan: &Plan, threads: usize) -> Re
     let st = &sample.stats;
     let n = sample.len();
     let peak = memory::peak_bytes();
-    let empty = (n == 0 && st.stopped.is_none()).then(|| empty_reason(st, args));
+    let empty = (n == 0 && st.stopped.is_none())
+        .then(|| st.why_nothing_found(args.exhaustive, !p.seeds.is_empty()));
     let mut not_written: Vec<String> = args
         .out
         .iter()
@@ -707,26 +729,6 @@ fn check_memory(what: &str, extra: usize, limit: u64) -> Result<()> {
         )));
     }
     Ok(())
-}
-
-/// Why a trace that found nothing found nothing.
-fn empty_reason(st: &isomesh::trace::TraceStats, args: &TraceArgs) -> String {
-    let why = if st.non_finite > 0 {
-        format!(
-            "f is NaN or infinite at {} of the points tried (non_finite in the report) and \
-             crosses 0 nowhere else",
-            st.non_finite
-        )
-    } else if st.seed_points == 0 && args.seeds.is_empty() {
-        "the seed search found no point of M in the box (f may have no zero there: give a \
-         seed, a larger --search or another box)"
-            .to_string()
-    } else {
-        "M was not met: f has no zero in the box at this edge (give a seed, a smaller edge or \
-         another box)"
-            .to_string()
-    };
-    format!("no crossed simplex was found: {why}")
 }
 
 fn progress_bar(quiet: bool) -> ProgressBar {

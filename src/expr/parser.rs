@@ -221,7 +221,10 @@ impl Scope {
             parameters: Vec::new(),
         };
         for (i, n) in names.iter().enumerate() {
-            s.check_new_name(n)?;
+            // x1..xd always name the coordinates: a variable may be called xi only at place i.
+            if coordinate_number(n) != Some(i + 1) {
+                s.check_new_name(n)?;
+            }
             s.variables.push((n.clone(), i));
         }
         Ok(s)
@@ -236,9 +239,20 @@ impl Scope {
         if !valid {
             return Err(err(
                 ErrorKind::UnexpectedToken,
-                1,
-                1,
+                0,
+                0,
                 format!("'{name}' is not a valid name"),
+            ));
+        }
+        if let Some(i) = coordinate_number(name) {
+            return Err(err(
+                ErrorKind::DuplicateName,
+                0,
+                0,
+                format!(
+                    "the name '{name}' is taken: x1, x2, ... always name the coordinates \
+                     (x{i} is coordinate {i}); choose another"
+                ),
             ));
         }
         let taken = self.variables.iter().any(|(n, _)| n == name)
@@ -249,8 +263,8 @@ impl Scope {
         if taken {
             return Err(err(
                 ErrorKind::DuplicateName,
-                1,
-                1,
+                0,
+                0,
                 format!("the name '{name}' is already taken"),
             ));
         }
@@ -264,8 +278,8 @@ impl Scope {
         if !value.is_finite() {
             return Err(err(
                 ErrorKind::NonFinite,
-                1,
-                1,
+                0,
+                0,
                 format!("parameter '{name}' = {value} is not finite"),
             ));
         }
@@ -683,16 +697,32 @@ pub fn parse_system(text: &str, scope: &Scope) -> Result<Vec<Expr>, ParseError> 
     Ok(eqs)
 }
 
-/// Checks 1 <= k < d.
+/// `i` when `name` is `xi` (x followed by digits only, i >= 1): a coordinate's name.
+fn coordinate_number(name: &str) -> Option<usize> {
+    let digits = name.strip_prefix('x')?;
+    if digits.is_empty() || !digits.chars().all(|c| c.is_ascii_digit()) {
+        return None;
+    }
+    Some(digits.parse::<usize>().unwrap_or(usize::MAX)).filter(|&i| i >= 1)
+}
+
+/// Checks 1 <= k < d; `line` is the line of the text the error is put at (0: none, when the
+/// equations were given one by one).
 pub fn check_counts(k: usize, d: usize, line: usize) -> Result<(), ParseError> {
+    let column = usize::from(line > 0);
     if k == 0 {
-        return Err(err(ErrorKind::Dimensions, line, 1, "no equation given"));
+        return Err(err(
+            ErrorKind::Dimensions,
+            line,
+            column,
+            "no equation given",
+        ));
     }
     if k >= d {
         return Err(err(
             ErrorKind::Dimensions,
             line,
-            1,
+            column,
             format!(
                 "{k} equation{} in {d} variables: a manifold needs fewer equations than variables",
                 if k == 1 { "" } else { "s" }

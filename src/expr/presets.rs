@@ -100,7 +100,7 @@ pub fn preset_spec(name: &str, overrides: &[(String, f64)]) -> Result<Spec> {
         .collect();
     for (n, v) in overrides {
         if !params.contains_key(n) {
-            return Err(Error::Spec(format!(
+            return Err(Error::Usage(format!(
                 "preset '{name}' has no parameter '{n}' (it has {})",
                 info.params
                     .iter()

@@ -315,13 +315,14 @@ impl Spec {
                 &self.boundary_at
             };
             match at.get(i).copied().flatten() {
-                Some((line, column)) => {
+                Some((line, column)) if e.line > 0 => {
                     if e.line == 1 {
                         e.column += column - 1;
                     }
                     e.line += line - 1;
                     e.within(format!("{what} {} of the spec file", i + 1))
                 }
+                Some(_) => e.within(format!("{what} {} of the spec file", i + 1)),
                 None => e.within(format!("{what} {}, counted within its text", i + 1)),
             }
         })?;

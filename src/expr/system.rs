@@ -109,7 +109,7 @@ impl EquationSystem {
                 .collect::<Result<Vec<_>, ParseError>>()
         };
         let eqs = parse_all(equations, "equation")?;
-        check_counts(eqs.len(), scope.dim, 1)?;
+        check_counts(eqs.len(), scope.dim, 0)?;
         let bnd = parse_all(boundary, "boundary inequality")?;
         Self::from_exprs(default_names(scope), eqs, bnd)
     }
@@ -127,7 +127,7 @@ impl EquationSystem {
     ) -> Result<Self> {
         let d = names.len();
         check_dim(d)?;
-        check_counts(equations.len(), d, 1)?;
+        check_counts(equations.len(), d, 0)?;
         if let Some(e) = equations.iter().chain(&boundary).find(|e| e.arity() > d) {
             return Err(Error::DimensionMismatch(format!(
                 "an equation uses x{} in R^{d}",
@@ -322,7 +322,7 @@ impl ClosureFunction {
         f: impl Fn(&[f64], &mut [f64]) + Send + Sync + 'static,
     ) -> Result<Self> {
         check_dim(d)?;
-        check_counts(k, d, 1)?;
+        check_counts(k, d, 0)?;
         Ok(ClosureFunction {
             d,
             k,

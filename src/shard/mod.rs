@@ -259,7 +259,11 @@ pub fn scan(mesher: &Mesher, shard: &Shard, halo: f64) -> Result<Part> {
     crate::expr::spec::check_box(&within, d)
         .map_err(|_| Error::Spec(format!("the shard {shard:?} lies outside the box")))?;
     let start = Instant::now();
-    let run = mesher.clone().key_box(whole).bbox(within.clone()).scan()?;
+    let run = mesher
+        .clone()
+        .key_box(whole)
+        .bbox(within.clone())
+        .scan_part()?;
     if let Some(why) = run.report().stopped {
         return Err(Error::Trace(format!(
             "the shard's scan stopped early: {why}"

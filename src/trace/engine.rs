@@ -231,7 +231,7 @@ impl<'a, const W: usize> Engine<'a, W> {
     /// The oracle on simplices given as vertex-cache rows, with the counters.
     pub(super) fn decide_rows(&mut self, rows: &[u32]) -> Result<Verdicts> {
         let (verdicts, exact) = self.judge(rows)?;
-        self.count(&verdicts, exact);
+        self.count(&verdicts, exact, rows);
         Ok(verdicts)
     }
 
@@ -250,19 +250,37 @@ impl<'a, const W: usize> Engine<'a, W> {
         Ok((Verdicts { status, lambda }, exact))
     }
 
-    /// Counts the decisions `v`, reached as `how` says.
-    pub(super) fn count(&mut self, v: &Verdicts, how: Decisions) {
+    /// Counts the decisions `v` on the candidates `rows`, reached as `how` says, and looks
+    /// at degenerate ones for a region where f vanishes.
+    pub(super) fn count(&mut self, v: &Verdicts, how: Decisions, rows: &[u32]) {
         let m = v.status.len() as u64;
         self.stats.exact_decisions += how.exact;
         self.stats.oracle_calls += m;
         self.stats.device_decisions += how.on_device;
         self.stats.cpu_decisions += m - how.on_device;
+        let before = self.stats.degenerate;
         for s in &v.status {
             match s {
                 Status::Degenerate => self.stats.degenerate += 1,
                 Status::NonFinite => self.stats.non_finite += 1,
                 _ => {}
             }
+        }
+        if self.stats.degenerate > before && self.stats.zero_region.is_none() {
+            let (ctx, verts) = (&self.ctx, &self.verts);
+            let coords = |i: usize, x: &mut [f64]| {
+                let mut v = [0i32; crate::triangulation::MAX_DIM];
+                ctx.codec.decode_vertex(verts.key(i), &mut v[..ctx.d]);
+                ctx.tri.vertex_coords(&v[..ctx.d], x);
+            };
+            self.stats.zero_region = super::checks::zero_region(
+                ctx.f,
+                &v.status,
+                rows,
+                &self.values,
+                ctx.tri.edge(),
+                coords,
+            );
         }
     }
 

@@ -463,7 +463,7 @@ impl<const W: usize> Engine<'_, W> {
             );
             next = named_next;
             let (verdicts, exact) = judged?;
-            self.count(&verdicts, exact);
+            self.count(&verdicts, exact, &rows);
             taken.push(keys, rows, verdicts);
             if sliced {
                 named_all.extend_from_slice(&cands);

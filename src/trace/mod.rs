@@ -17,6 +17,7 @@
 //! }
 //! ```
 
+pub mod checks;
 mod engine;
 mod level;
 mod oracle;
@@ -183,7 +184,8 @@ pub struct TraceStats {
     pub exact_decisions: u64,
     /// Candidates with a singular labelling matrix.
     pub degenerate: u64,
-    /// Candidates, or cofacets of crossed simplices, with a non-finite vertex value.
+    /// Candidates, or cofacets of crossed simplices, with a non-finite vertex value (in a
+    /// scan that found nothing: lattice vertices where f is not finite).
     pub non_finite: u64,
     /// Lattice vertices where f was evaluated.
     pub vertices: u64,
@@ -205,10 +207,44 @@ pub struct TraceStats {
     pub memory_bytes: u64,
     /// Set when the trace stopped early.
     pub stopped: Option<StopReason>,
+    /// A point around which an equation of f is identically 0 (at every vertex of a simplex
+    /// tried, and at points a quarter edge away along each axis): f vanishes on a region
+    /// there, whose zero set is no manifold. See [`checks::region_error`].
+    #[serde(skip)]
+    pub zero_region: Option<(usize, Vec<f64>)>,
+}
+
+impl TraceStats {
+    /// Why a run that found no crossed simplex, and was not stopped, found none: a sentence
+    /// saying what to change. `exhaustive`: it was a scan; `seeds_given`: it was traced from
+    /// seeds the caller gave.
+    pub fn why_nothing_found(&self, exhaustive: bool, seeds_given: bool) -> String {
+        let why = if self.non_finite > 0 {
+            format!(
+                "f is NaN or infinite at {} of the points tried (non_finite in the report) and \
+                 crosses 0 nowhere else",
+                self.non_finite
+            )
+        } else if exhaustive {
+            "f changes sign on no simplex of the box at this edge (f may have no zero there, or \
+             only zeros it touches without crossing: try a smaller edge or another box)"
+                .to_string()
+        } else if self.seed_points == 0 && !seeds_given {
+            "the seed search found no point of M in the box (f may have no zero there: give a \
+             seed, a larger search or another box)"
+                .to_string()
+        } else {
+            "M was not met: f has no zero in the box at this edge (give a seed, a smaller edge \
+             or another box)"
+                .to_string()
+        };
+        format!("no crossed simplex was found: {why}")
+    }
 }
 
 /// What the engine and the scan share.
 pub(crate) struct TraceContext<'a> {
+    pub f: &'a dyn ImplicitFunction,
     pub tri: &'a Triangulation,
     pub oracle: &'a dyn Oracle,
     pub codec: KeyCodec,
@@ -281,6 +317,7 @@ fn context<'a>(
     }
     let codec = KeyCodec::new(d, k, coord_bits(tri, opts.key_box.as_deref().or(bbox)))?;
     Ok(TraceContext {
+        f,
         tri,
         oracle,
         codec,

@@ -12,6 +12,24 @@ pub fn in_box(bbox: &[[f64; 2]], x: &[f64]) -> bool {
     bbox.iter().zip(x).all(|([lo, hi], v)| lo <= v && v <= hi)
 }
 
+/// How far outside a face of the box row `[lo, hi]` a point still counts as inside: 2^-40 of
+/// the row's size, well above the rounding of crossing points (about 2^-52 of it) and far
+/// below any feature a triangulation resolves.
+#[inline]
+pub fn box_slack([lo, hi]: [f64; 2]) -> f64 {
+    const SLACK: f64 = 1.0 / (1u64 << 40) as f64;
+    SLACK * (hi - lo).max(lo.abs()).max(hi.abs())
+}
+
+/// Whether `x` lies in the closed box up to [`box_slack`].
+#[inline]
+pub fn in_box_closed(bbox: &[[f64; 2]], x: &[f64]) -> bool {
+    bbox.iter().zip(x).all(|(&[lo, hi], &v)| {
+        let e = box_slack([lo, hi]);
+        lo - e <= v && v <= hi + e
+    })
+}
+
 /// Integer bounds `lo..=hi` per lattice axis on the base vertices of every simplex that can
 /// meet the box (the preimage of the box under x = A u + b, rounded outward with a margin).
 pub fn lattice_bounds(tri: &Triangulation, bbox: &[[f64; 2]]) -> (Vec<i64>, Vec<i64>) {
@@ -104,10 +122,12 @@ impl<'a> Domain<'a> {
         }
     }
 
-    /// Whether `x` lies in the domain (a NaN constraint value counts as outside).
+    /// Whether `x` lies in the domain (a NaN constraint value counts as outside). The box
+    /// is closed up to rounding: a point within [`box_slack`] of a face is inside, so that a
+    /// piece of M lying in a face is kept whole, not cut apart by the rounding of its points.
     pub fn contains(&self, x: &[f64]) -> bool {
         if let Some(b) = self.bbox {
-            if !in_box(b, x) {
+            if !in_box_closed(b, x) {
                 return false;
             }
         }
@@ -133,9 +153,16 @@ impl<'a> Domain<'a> {
         let (mut va, mut vb) = (Vec::new(), Vec::new());
         self.values(a, &mut va);
         self.values(b, &mut vb);
+        // The constraints b breaks; a box margin within rounding of 0 is not broken.
+        let slack = |i: usize| match self.bbox {
+            Some(bx) if i < 2 * bx.len() => box_slack(bx[i / 2]),
+            _ => 0.0,
+        };
         va.iter()
             .zip(&vb)
-            .filter(|(_, &y)| y < 0.0 || y.is_nan())
+            .enumerate()
+            .filter(|&(i, (_, &y))| y < -slack(i) || y.is_nan())
+            .map(|(_, pair)| pair)
             .map(|(&x, &y)| {
                 let t = x / (x - y);
                 if t.is_finite() {

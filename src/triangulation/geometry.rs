@@ -96,6 +96,10 @@ pub struct Triangulation {
     coxeter_c: Vec<f64>,
 }
 
+/// The edge lengths a triangulation takes: far inside f64's range, so that lattice
+/// coordinates, their inverses and squared lengths stay finite and normal.
+pub const EDGE_RANGE: std::ops::RangeInclusive<f64> = 1e-100..=1e100;
+
 /// Builds a [`Triangulation`]; start from [`Triangulation::coxeter`],
 /// [`Triangulation::freudenthal`] or [`Triangulation::custom`].
 #[derive(Clone, Debug)]
@@ -221,9 +225,11 @@ impl TriangulationBuilder {
             (TriangulationKind::Custom, None) => (f64::NAN, 1.0),
             (_, e) => {
                 let e = e.unwrap_or(1.0);
-                if !(e.is_finite() && e > 0.0) {
+                if !EDGE_RANGE.contains(&e) {
                     return Err(Error::Triangulation(format!(
-                        "edge must be a positive finite length, got {e}"
+                        "edge {e:e} is out of range: the edge must be from {:e} to {:e}",
+                        EDGE_RANGE.start(),
+                        EDGE_RANGE.end()
                     )));
                 }
                 (e, e / base_edge)
@@ -239,6 +245,13 @@ impl TriangulationBuilder {
                 }
                 let flat: Vec<f64> = m.iter().flatten().copied().collect();
                 check_finite_in(&flat, "the custom matrix (row by row)")?;
+                if let Some(x) = flat.iter().find(|x| x.abs() > *EDGE_RANGE.end()) {
+                    return Err(Error::Triangulation(format!(
+                        "custom matrix entry {x:e} is out of range: entries must be at most \
+                         {:e} in size, as edges are",
+                        EDGE_RANGE.end()
+                    )));
+                }
                 Some(flat)
             }
             None => None,

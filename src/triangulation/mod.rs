@@ -10,7 +10,7 @@ mod simplex;
 mod test_support;
 
 pub use geometry::{
-    random_rotation, Offset, Triangulation, TriangulationBuilder, TriangulationKind,
+    random_rotation, Offset, Triangulation, TriangulationBuilder, TriangulationKind, EDGE_RANGE,
 };
 pub use key::KeyCodec;
 pub use key_set::{KeySet, Width, Words};

@@ -112,6 +112,11 @@ pub(crate) fn scan<const W: usize>(ctx: &TraceContext, bbox: &[[f64; 2]]) -> Res
         batch = ahead.transpose()?;
     }
     found.par_sort_unstable();
+    // Nothing found: say whether f was NaN or infinite on the grid (such vertices have no
+    // sign, so no candidate counted them).
+    if found.is_empty() && stats.non_finite == 0 {
+        stats.non_finite = grid.values().par_iter().filter(|v| !v.is_finite()).count() as u64;
+    }
     let mut table = Table::fixed();
     for key in &found {
         table.insert(key)?;
@@ -156,6 +161,20 @@ fn decide_batch<const W: usize>(
                 _ => {}
             }
         }
+    }
+    if stats.zero_region.is_none() && status.contains(&Status::Degenerate) {
+        stats.zero_region = crate::trace::checks::zero_region(
+            ctx.f,
+            &status,
+            rows,
+            grid.values(),
+            ctx.tri.edge(),
+            |i, x| {
+                let mut v = [0i32; MAX_DIM];
+                grid.coords(i, &mut v[..d]);
+                ctx.tri.vertex_coords(&v[..d], x);
+            },
+        );
     }
     let hits: Vec<Result<Option<Key<W>>>> = (0..m)
         .into_par_iter()
