@@ -259,7 +259,8 @@ impl Mesher {
         self
     }
 
-    /// Worker threads, in a pool of the mesher's own (default: rayon's current pool).
+    /// Worker threads, in a pool of the mesher's own (default: rayon's current pool); more
+    /// than [`max_threads`] run [`max_threads`].
     pub fn threads(mut self, threads: usize) -> Self {
         self.threads = Some(threads);
         self
@@ -374,7 +375,7 @@ impl Mesher {
         if let Some(0) = self.threads {
             return Err(Error::Spec("threads must be at least 1".into()));
         }
-        match self.threads {
+        match self.threads.map(|n| n.min(max_threads())) {
             Some(n) => rayon::ThreadPoolBuilder::new()
                 .num_threads(n)
                 .build()
@@ -497,6 +498,26 @@ impl Mesher {
         o.set_device_values(self.device_values);
         Ok(Some(o))
     }
+}
+
+/// Most worker threads per core a run may ask for.
+const MAX_THREADS_PER_CORE: usize = 4;
+/// Most worker threads in all.
+const MAX_THREADS: usize = 1024;
+
+/// The most worker threads a run uses: 4 per core, at most 1024 (more only wait on one
+/// another, and thousands take seconds to start).
+pub fn max_threads() -> usize {
+    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+    (cores * MAX_THREADS_PER_CORE).min(MAX_THREADS)
+}
+
+/// What a warning says of a thread count above `cap` ([`max_threads`]).
+pub fn too_many_threads(cap: usize) -> String {
+    format!(
+        "more than this machine can use: running {cap} (at most {MAX_THREADS_PER_CORE} per \
+         core, and at most {MAX_THREADS})"
+    )
 }
 
 /// M as a trace or scan found it: the sample S, and on demand its cell complex, topology,

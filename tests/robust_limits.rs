@@ -294,7 +294,9 @@ fn messages_name_what_to_change() {
         let t = text(&o);
         assert!(!t.contains("9223372036854775808"), "{t}");
         assert!(
-            t.contains("larger edge") || t.contains("off the manifold"),
+            t.contains("larger edge")
+                || t.contains("off the manifold")
+                || t.contains("the edge must be from 1e-100"),
             "{args:?}: {t}"
         );
     }
@@ -323,4 +325,25 @@ fn high_dimensions_trace_with_no_box() {
         assert!(o.status.success(), "d = {d}: {}", text(&o));
         assert!(r["simplex_count"].as_u64().unwrap() > 0);
     }
+}
+
+/// A spec that never ends (a device, a pipe) is read only as far as a spec may go, under any
+/// memory limit, and refused; an exhaustive scan of a NaN f says so, as the trace does.
+#[cfg(unix)]
+#[test]
+fn endless_specs_are_refused_and_nan_scans_say_so() {
+    let dir = scratch("endless");
+    for limit in ["48M", "2G"] {
+        let o = isomesh(&dir, &["trace", "/dev/zero", "--max-memory", limit]);
+        assert_eq!(o.status.code(), Some(1), "{}", text(&o));
+        assert!(text(&o).contains("a spec file is at most"), "{}", text(&o));
+    }
+    std::fs::write(
+        dir.join("nan.toml"),
+        "ambient_dim = 3\nequations = [\"ln(-2 - x^2) + z\"]\nbox = [[-1, 1], [-1, 1], [-1, 1]]\n",
+    )
+    .unwrap();
+    let o = isomesh(&dir, &["trace", "nan.toml", "--exhaustive"]);
+    assert_eq!(o.status.code(), Some(1), "{}", text(&o));
+    assert!(text(&o).contains("NaN or infinite"), "{}", text(&o));
 }

@@ -13,6 +13,11 @@ use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use std::io::ErrorKind;
 
+/// Rust's heap in this module is counted, as in the `isomesh` binary: the memory limit holds
+/// against it and the report's `peak_memory_bytes` is measured.
+#[global_allocator]
+static ALLOC: isomesh::memory::CountingAlloc = isomesh::memory::CountingAlloc;
+
 /// An isomesh error as the Python exception a caller expects, with the CLI's message.
 pub(crate) fn to_py(e: isomesh::Error) -> PyErr {
     use isomesh::Error as E;

@@ -173,6 +173,18 @@ impl Problem {
             }
         };
         if let Some(t) = threads {
+            let cap = isomesh::mesher::max_threads();
+            if t > cap {
+                let msg = format!("threads={t}: {}", isomesh::mesher::too_many_threads(cap));
+                Python::attach(|py| {
+                    PyErr::warn(
+                        py,
+                        &py.get_type::<PyRuntimeWarning>(),
+                        &std::ffi::CString::new(msg).unwrap_or_default(),
+                        1,
+                    )
+                })?;
+            }
             m = m.threads(t);
         }
         if let Some(bytes) = max_memory {

@@ -143,3 +143,20 @@ def test_a_manifold_in_a_face_of_the_box_is_kept_whole():
     for box in ([[-1, 1], [0.45, 1.3], [-1, 1]], [[-1, 1], [-0.2, 0.45], [-1, 1]]):
         topo = p.scan(box=box).complex().topology
         assert (topo["components"], topo["euler_characteristic"]) == (1, 1), box
+
+
+def test_unbounded_inputs_and_thread_counts_are_capped():
+    # A spec that never ends is read only so far; a thread count beyond the machine runs the
+    # machine's cap, with a warning.
+    with pytest.raises(ValueError, match="a spec file is at most"):
+        isomesh.Problem.from_toml("/dev/zero")
+    p = isomesh.Problem.preset("circle")
+    with pytest.warns(RuntimeWarning, match="more than this machine can use"):
+        s = p.trace(threads=123457)
+    assert 1 <= s.report["threads"] <= 1024
+    assert s.simplex_count == p.trace(threads=1).simplex_count
+
+
+def test_the_report_measures_peak_memory():
+    r = isomesh.Problem.preset("sphere", edge=0.05).trace().report
+    assert r["peak_memory_bytes"] > 100_000, r["peak_memory_bytes"]

@@ -261,17 +261,6 @@ fn box_from_flag(v: &[f64], d: usize) -> Result<Vec<[f64; 2]>> {
     }
 }
 
-/// Most worker threads per core `--threads` may ask for.
-const MAX_THREADS_PER_CORE: usize = 4;
-/// Most worker threads in all.
-const MAX_THREADS: usize = 1024;
-
-/// The most worker threads a trace runs.
-fn max_threads() -> usize {
-    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
-    (cores * MAX_THREADS_PER_CORE).min(MAX_THREADS)
-}
-
 /// Runs `isomesh trace` with `args`.
 pub fn run(args: &TraceArgs) -> Result<()> {
     // Parsing, differentiating and compiling the equations stop at the memory limit too.
@@ -285,11 +274,11 @@ pub fn run(args: &TraceArgs) -> Result<()> {
     if threads == 0 {
         return Err(Error::Usage("--threads must be at least 1".into()));
     }
-    let cap = max_threads();
+    let cap = isomesh::mesher::max_threads();
     if threads > cap {
         eprintln!(
-            "warning: --threads {threads} is more than this machine can use: running {cap} \
-             (at most {MAX_THREADS_PER_CORE} per core, and at most {MAX_THREADS})"
+            "warning: --threads {threads}: {}",
+            isomesh::mesher::too_many_threads(cap)
         );
         threads = cap;
     }

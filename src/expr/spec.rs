@@ -251,6 +251,10 @@ pub fn check_box(bbox: &[[f64; 2]], d: usize) -> Result<()> {
     Ok(())
 }
 
+/// The longest spec file read: far beyond any system of equations written by hand or by a
+/// program (a sum of 10^6 terms takes about 20 MiB).
+pub const MAX_SPEC_BYTES: u64 = 64 << 20;
+
 /// Heap the TOML reader needs for a byte of text, at its peak (measured at about 8 on a spec
 /// holding one long equation; a little more is asked for).
 const TOML_BYTES_PER_BYTE: u64 = 10;
@@ -269,12 +273,29 @@ impl Spec {
         Ok(spec)
     }
 
-    /// Reads and parses a spec file.
+    /// Reads and parses a spec file of at most [`MAX_SPEC_BYTES`] (a device or a pipe that
+    /// never ends, such as /dev/zero, is read only that far).
     pub fn from_file(path: &std::path::Path) -> Result<Spec> {
+        use std::io::Read;
+        let io = |e| Error::io(path.display(), e);
         if let Ok(meta) = std::fs::metadata(path) {
-            crate::memory::ensure_room("reading the spec file", meta.len())?;
+            crate::memory::ensure_room("reading the spec file", meta.len().min(MAX_SPEC_BYTES))?;
         }
-        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path.display(), e))?;
+        let mut bytes = Vec::new();
+        std::fs::File::open(path)
+            .map_err(io)?
+            .take(MAX_SPEC_BYTES + 1)
+            .read_to_end(&mut bytes)
+            .map_err(io)?;
+        if bytes.len() as u64 > MAX_SPEC_BYTES {
+            return Err(Error::Spec(format!(
+                "{}: more than {} MiB; a spec file is at most that long",
+                path.display(),
+                MAX_SPEC_BYTES >> 20
+            )));
+        }
+        let text = String::from_utf8(bytes)
+            .map_err(|_| Error::Spec(format!("{}: not UTF-8 text", path.display())))?;
         Self::from_toml(&text)
     }
 
