@@ -249,6 +249,11 @@ fn singular_seeds_are_warned_about() {
         (3, "x1^2 + x2^2 - x3^2", "0,0,0", true),
         (2, "x1^2 - x2^3", "0,0", true),
         (2, "x1*x2 - 0.25", "0.5,0.5", false),
+        // Badly scaled, or steep: regular points, no warning.
+        (2, "1e290 * (x1*x2 - 0.25)", "0.5,0.5", false),
+        (2, "1e-295 * (x1*x2 - 0.25)", "0.5,0.5", false),
+        (2, "x1^4000 - 0.5", "0.9998,0.3", false),
+        (2, "x1^3700 - 0.5", "0.9998,0.3", false),
     ]
     .iter()
     .enumerate()
@@ -346,4 +351,34 @@ fn endless_specs_are_refused_and_nan_scans_say_so() {
     let o = isomesh(&dir, &["trace", "nan.toml", "--exhaustive"]);
     assert_eq!(o.status.code(), Some(1), "{}", text(&o));
     assert!(text(&o).contains("NaN or infinite"), "{}", text(&o));
+}
+
+/// An f of a scale far from 1 is found by the seed search and from seeds as the same f at
+/// scale 1 is: the projection accepts a point within the tolerance of M, not only |f| that
+/// small.
+#[test]
+fn badly_scaled_equations_are_found_from_seeds_and_by_the_search() {
+    let sphere = "x1^2 + x2^2 + x3^2 - 0.8";
+    let count = |eq: &str, seed: bool| {
+        let mut spec = format!(
+            "ambient_dim = 3\nequations = [\"{eq}\"]\nbox = [[-1.2, 1.2], [-1.2, 1.2], [-1.2, 1.2]]\n"
+        );
+        if seed {
+            spec.push_str("seeds = [[0.2, 0.5, 0.6]]\n");
+        }
+        let (o, r, _) = trace("scaled", Some(&spec), &["--edge", "0.15", "--no-complex"]);
+        assert!(o.status.success(), "{eq}: {}", text(&o));
+        assert!(!text(&o).contains("rank-deficient"), "{eq}: {}", text(&o));
+        r["simplex_count"].as_u64().unwrap()
+    };
+    for seed in [true, false] {
+        let want = count(sphere, seed);
+        for scale in ["3e299", "7e-302"] {
+            assert_eq!(
+                count(&format!("{scale} * ({sphere})"), seed),
+                want,
+                "{scale}"
+            );
+        }
+    }
 }

@@ -359,6 +359,26 @@ fn messages_name_the_flag_or_name_at_fault() {
             "out of range",
         ),
     ];
+    let huge = spec(
+        "huge.toml",
+        &format!("ambient_dim = 18446744073709551614\n{sphere}"),
+    );
+    let custom = spec(
+        "c.toml",
+        &format!(
+            "ambient_dim = 3\n{sphere}[triangulation]\nkind = \"custom\"\nmatrix = [[0.3, 0, 0], \
+             [0, 0.3, 0], [0, 0, 0.3]]\n"
+        ),
+    );
+    let mut cases = cases;
+    cases.push((
+        vec![huge],
+        "ambient_dim = 18446744073709551614 is not supported",
+    ));
+    cases.push((
+        vec![custom, "--edge".into(), "0.2".into()],
+        "--edge: this spec's triangulation is custom",
+    ));
     for (args, says) in cases {
         let mut all: Vec<&str> = vec!["trace", "-q"];
         all.extend(args.iter().map(String::as_str));
@@ -370,7 +390,10 @@ fn messages_name_the_flag_or_name_at_fault() {
             !e.contains("spec: --") && !e.contains("spec: preset"),
             "{args:?}: {e}"
         );
-        assert!(!e.contains("line 1, column 1"), "{args:?}: {e}");
+        assert!(
+            !e.contains("line 1, column 1:") && !e.contains("line 1, column 1 ("),
+            "{args:?}: {e}"
+        );
     }
     // A parameter with a coordinate's name is refused whatever the dimension; other names
     // that start with x are fine.

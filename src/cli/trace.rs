@@ -317,6 +317,13 @@ fn apply_flags(p: &mut Problem, args: &TraceArgs) -> Result<()> {
         p.triangulation.rotate = Some(false);
     }
     if let Some(e) = args.edge {
+        if p.triangulation.matrix.is_some() {
+            return Err(Error::Usage(
+                "--edge: this spec's triangulation is custom and takes its scale from its \
+                 matrix; scale the matrix instead, or leave --edge out"
+                    .into(),
+            ));
+        }
         p.triangulation.edge = Some(e);
     }
     if let Some(b) = &args.bbox {

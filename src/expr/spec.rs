@@ -33,7 +33,7 @@ use crate::triangulation::{check_dim, Offset, Triangulation, TriangulationKind};
 pub struct Spec {
     /// d; a spec file may leave it out when `variables` names the coordinates (it reads
     /// as [`INFER_DIM`]).
-    #[serde(default = "infer_dim")]
+    #[serde(default = "infer_dim", deserialize_with = "written_dim")]
     pub ambient_dim: usize,
     /// Variable names (default x1..xd, plus x y z w when d <= 4).
     pub variables: Option<Vec<String>>,
@@ -124,6 +124,19 @@ pub const INFER_DIM: usize = usize::MAX;
 
 fn infer_dim() -> usize {
     INFER_DIM
+}
+
+/// `ambient_dim` as written; a value beyond any dimension is refused here, so that none
+/// reads as left out (the sentinel [`INFER_DIM`]).
+fn written_dim<'de, D: serde::Deserializer<'de>>(d: D) -> std::result::Result<usize, D::Error> {
+    let v = u64::deserialize(d)?;
+    match usize::try_from(v) {
+        Ok(n) if n <= crate::MAX_DIM => Ok(n),
+        _ => Err(serde::de::Error::custom(format!(
+            "ambient_dim = {v} is not supported: isomesh handles 1 to {}",
+            crate::MAX_DIM
+        ))),
+    }
 }
 
 /// The `[triangulation]` table.

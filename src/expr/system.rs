@@ -368,7 +368,9 @@ impl ImplicitFunction for ClosureFunction {
 }
 
 /// Projects `x0` onto f^-1(0) by Gauss-Newton steps x <- x - J^T (J J^T)^-1 f(x) (the
-/// nearest-point step for a full-rank Jacobian); errors if it does not reach |f| <= tol.
+/// nearest-point step for a full-rank Jacobian); errors if it does not reach |f| <= tol, or
+/// for an f too large or too small in scale for that, a first-order distance to each
+/// equation's zero set (|f_r| / |grad f_r|) of at most tol.
 pub fn newton_project(f: &dyn ImplicitFunction, x0: &[f64], tol: f64) -> Result<Vec<f64>> {
     let (d, k) = (f.ambient_dim(), f.codim());
     if x0.len() != d {
@@ -392,6 +394,21 @@ pub fn newton_project(f: &dyn ImplicitFunction, x0: &[f64], tol: f64) -> Result<
             return Ok(x);
         }
         f.jacobian(&x, &mut j);
+        if j.iter().any(|v| !v.is_finite()) {
+            break;
+        }
+        // Rows of a scale whose products would overflow or underflow are brought near 1 by
+        // a power of two (the step does not change; other rows are left as they are).
+        for r in 0..k {
+            let m = j[r * d..(r + 1) * d]
+                .iter()
+                .fold(0.0f64, |a, v| a.max(v.abs()));
+            if m > 0.0 && !(2f64.powi(-100)..=2f64.powi(100)).contains(&m) {
+                let s = 2f64.powi(-m.log2().round().clamp(-1000.0, 1000.0) as i32);
+                j[r * d..(r + 1) * d].iter_mut().for_each(|v| *v *= s);
+                fx[r] *= s;
+            }
+        }
         for r in 0..k {
             for c in 0..k {
                 jjt[r * k + c] = (0..d).map(|t| j[r * d + t] * j[c * d + t]).sum();
@@ -405,41 +422,78 @@ pub fn newton_project(f: &dyn ImplicitFunction, x0: &[f64], tol: f64) -> Result<
             *xc -= (0..k).map(|r| j[r * d + c] * y[r]).sum::<f64>();
         }
     }
+    if within_distance(f, &x, tol) {
+        return Ok(x);
+    }
     Err(Error::Spec(format!(
-        "Newton projection from {x0:?} did not converge to |f| <= {tol:e}: the seed is too far from the manifold or the Jacobian is singular there"
+        "Newton projection from {x0:?} did not converge to |f| <= {tol:e}: the seed is too far \
+         from the manifold or the Jacobian is singular there"
     )))
 }
 
+/// Whether every equation's first-order distance |f_r(x)| / |grad f_r(x)| to its zero set is
+/// at most `tol`: |f| <= tol for an f whose scale is far from 1 (1e300 f, 1e-300 f).
+fn within_distance(f: &dyn ImplicitFunction, x: &[f64], tol: f64) -> bool {
+    let (d, k) = (f.ambient_dim(), f.codim());
+    let (mut fx, mut j) = (vec![0.0; k], vec![0.0; k * d]);
+    f.eval_batch(x, &mut fx);
+    f.jacobian(x, &mut j);
+    (0..k).all(|r| {
+        let g = scaled_norm(&j[r * d..(r + 1) * d]);
+        g > 0.0 && g.is_finite() && fx[r].is_finite() && fx[r].abs() <= tol * g
+    })
+}
+
+/// The Euclidean norm of `v`, with no overflow or underflow on the way.
+fn scaled_norm(v: &[f64]) -> f64 {
+    let m = v.iter().fold(0.0f64, |a, x| a.max(x.abs()));
+    if m == 0.0 || !m.is_finite() {
+        return m;
+    }
+    m * v.iter().map(|x| (x / m) * (x / m)).sum::<f64>().sqrt()
+}
+
 /// Whether the Jacobian of `f` is rank-deficient at `x`: some row, made orthogonal to the
-/// rows before it, is shorter than 1e-6 times the largest Jacobian row found at `x` and at
-/// the 2 d points `x` +- `h` e_i (a scale for f's own slope). Tracing from such a point (a
-/// crossing of branches, a cusp) follows one branch at most.
+/// rows before it, is shorter than 1e-6 times f's own slope about `x`: the median of the
+/// largest Jacobian rows at the 2 d points `x` +- `h` e_i (a median, so that a steep f, whose
+/// slope a step away is many times its slope at `x`, is not taken for a singular one).
+/// Tracing from such a point (a crossing of branches, a cusp) follows one branch at most. A
+/// Jacobian that is not finite at `x` tells nothing: false.
 pub fn is_singular_at(f: &dyn ImplicitFunction, x: &[f64], h: f64) -> bool {
     let (d, k) = (f.ambient_dim(), f.codim());
     let mut j = vec![0.0; k * d];
-    let row_norm = |j: &[f64]| {
-        j.chunks_exact(d)
-            .map(|r| r.iter().map(|v| v * v).sum::<f64>().sqrt())
-            .fold(0.0, f64::max)
-    };
-    let mut scale = 0.0f64;
+    let row_norm = |j: &[f64]| j.chunks_exact(d).map(scaled_norm).fold(0.0, f64::max);
+    let mut around = Vec::with_capacity(2 * d);
     let mut p = x.to_vec();
     for c in 0..d {
         for step in [h, -h] {
             p[c] = x[c] + step;
             f.jacobian(&p, &mut j);
-            scale = scale.max(row_norm(&j));
+            let n = row_norm(&j);
+            if !n.is_nan() {
+                around.push(n);
+            }
         }
         p[c] = x[c];
     }
     f.jacobian(x, &mut j);
-    scale = scale.max(row_norm(&j));
-    if !scale.is_finite() || j.iter().any(|v| !v.is_finite()) {
-        return true;
+    if j.iter().any(|v| !v.is_finite()) {
+        return false;
     }
+    around.sort_by(f64::total_cmp);
+    let at_x = row_norm(&j);
+    let scale = match around.get(around.len() / 2) {
+        Some(&m) if m.is_finite() => m.max(at_x),
+        _ => at_x,
+    };
     if scale == 0.0 {
         return true;
     }
+    // A power of two near 1 / scale (exact): the rows' products then neither overflow nor
+    // underflow where it matters.
+    let s = 2f64.powi(-scale.log2().round().clamp(-1000.0, 1000.0) as i32);
+    j.iter_mut().for_each(|v| *v *= s);
+    let scale = scale * s;
     // Modified Gram-Schmidt over the rows.
     for r in 0..k {
         for q in 0..r {
@@ -451,12 +505,7 @@ pub fn is_singular_at(f: &dyn ImplicitFunction, x: &[f64], h: f64) -> bool {
                 row.iter_mut().zip(qrow).for_each(|(b, a)| *b -= t * a);
             }
         }
-        let norm = j[r * d..(r + 1) * d]
-            .iter()
-            .map(|v| v * v)
-            .sum::<f64>()
-            .sqrt();
-        if norm <= 1e-6 * scale {
+        if scaled_norm(&j[r * d..(r + 1) * d]) <= 1e-6 * scale {
             return true;
         }
     }

@@ -100,7 +100,8 @@ impl<const W: usize> Engine<'_, W> {
             ring = next;
         }
         Err(Error::Trace(format!(
-            "no k-simplex near the seed {x:?} is crossed by M (the seed is off the manifold, or \
+            "no k-simplex near {x:?}, where a seed projected, is crossed by M (the seed is off \
+             the manifold, or \
              M is too small for edge = {}); d = {d}",
             self.ctx.tri.edge()
         )))

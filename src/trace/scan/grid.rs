@@ -199,15 +199,27 @@ fn near_rows(ctx: &TraceContext, near: &[[f64; 2]]) -> Result<ScanGrid> {
     ctx.tri.vertex_coords(&zero, &mut origin);
     // Refuse before enumerating: about vol(box) / |det A| vertices, each k values.
     let a = ctx.tri.matrix();
-    let volume: f64 = near.iter().map(|[lo, hi]| hi - lo).product();
-    let estimate = crate::linalg::Lu::new(&a, d).map_or(f64::INFINITY, |lu| volume / lu.abs_det());
-    let bytes = estimate * vertex_bytes(ctx) as f64;
-    if !(bytes <= ctx.max_memory as f64 && estimate < u32::MAX as f64) {
+    // In logarithms: the volume and the determinant may each pass f64's range.
+    let log_volume: f64 = near.iter().map(|[lo, hi]| (hi - lo).log10()).sum();
+    let log_estimate =
+        crate::linalg::Lu::new(&a, d).map_or(f64::INFINITY, |lu| log_volume - lu.abs_det().log10());
+    let log_bytes = log_estimate + (vertex_bytes(ctx) as f64).log10();
+    let estimate = 10f64.powf(log_estimate);
+    if !(log_bytes <= (ctx.max_memory as f64).log10() && estimate < u32::MAX as f64) {
+        let bytes = if log_bytes < 18.0 {
+            crate::memory::human_bytes(10f64.powf(log_bytes) as u64)
+        } else {
+            format!("10^{} bytes", about_power(log_bytes))
+        };
+        let vertices = if log_estimate < 18.0 {
+            format!("{estimate:.3e}")
+        } else {
+            format!("10^{}", about_power(log_estimate))
+        };
         return Err(Error::Trace(format!(
-            "the exhaustive scan of this box needs about {estimate:.3e} lattice vertices, \
-             about {}, over the memory limit of {} or the 2^32 vertex cap: use a smaller box \
-             or a larger edge",
-            crate::memory::human_bytes(bytes.min(u64::MAX as f64) as u64),
+            "the exhaustive scan of this box needs about {vertices} lattice vertices, about \
+             {bytes}, over the memory limit of {} or the 2^32 vertex cap: use a smaller box or \
+             a larger edge",
             crate::memory::human_bytes(ctx.max_memory)
         )));
     }
@@ -510,6 +522,15 @@ pub(crate) fn build(ctx: &TraceContext, bbox: &[[f64; 2]]) -> Result<ScanGrid> {
         }
     }
     Ok(grid)
+}
+
+/// A power of ten to print: `log10` rounded, "more than 308" past f64's range.
+fn about_power(log10: f64) -> String {
+    if log10.is_finite() && log10 < 308.0 {
+        format!("{:.0}", log10)
+    } else {
+        "308 or more".into()
+    }
 }
 
 /// Unit normals n (one per sign pair) orthogonal to the vectors `span` (j of them, in R^d)
