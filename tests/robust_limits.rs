@@ -162,6 +162,9 @@ fn unbounded_manifolds_with_no_box_stop_early_asking_for_one() {
         (3, "x1^2 + x2^2 - 1", "1,0,0"),
         (2, "x2 - 0.5*x1", "0,0"),
         (2, "x1*x2 - 1", "1,1"),
+        // A plane: reaching the extent would take minutes and gigabytes; the budget of
+        // simplices stops it first.
+        (3, "x2 + 0.1", "0.3,-0.1,0.2"),
     ]
     .iter()
     .enumerate()
@@ -181,6 +184,7 @@ fn unbounded_manifolds_with_no_box_stop_early_asking_for_one() {
         );
         assert!(!t.contains("smaller box"), "{t}");
         assert_eq!(r["complete"], false);
+        assert!(r["simplex_count"].as_u64().unwrap() <= 1 << 22, "{r}");
     }
     // With a box the same manifold traces to completion.
     let spec =

@@ -140,6 +140,12 @@ impl<'a, const W: usize> Engine<'a, W> {
                 });
                 return Ok(());
             }
+            if self.ctx.domain.bbox.is_none() && self.s.len() > super::NO_BOX_SIMPLICES {
+                self.stats.stopped = Some(StopReason::NoBoxTooLarge {
+                    simplices: self.s.len() as u64,
+                });
+                return Ok(());
+            }
             self.stats.levels += 1;
             self.stats.widest_level = self.stats.widest_level.max(front.range.len() as u64);
             if let Some(p) = self.ctx.progress {

@@ -130,7 +130,17 @@ pub enum StopReason {
         /// About that many units of length.
         distance: f64,
     },
+    /// With no box, the trace found more than [`NO_BOX_SIMPLICES`] crossed simplices: M may be
+    /// unbounded (a plane reaches the extent of [`DEFAULT_EXTENT_STEPS`] only after minutes
+    /// and gigabytes), and a box is needed to trace it.
+    NoBoxTooLarge {
+        /// The simplices found.
+        simplices: u64,
+    },
 }
+
+/// The most crossed simplices a trace with no box finds before it stops, asking for a box.
+pub const NO_BOX_SIMPLICES: usize = 1 << 21;
 
 /// How far (in lattice steps, about one edge each, along any lattice axis) a trace with no
 /// box may go from its nearest seed: beyond that M is taken to be unbounded and the trace
@@ -156,6 +166,12 @@ impl std::fmt::Display for StopReason {
                 } else {
                     "give a box: with none, M may be unbounded"
                 }
+            ),
+            StopReason::NoBoxTooLarge { simplices } => write!(
+                f,
+                "no box was given and the trace found {simplices} simplices, more than a trace \
+                 with no box may: M may be unbounded; give a box (--box, or box = [...] in the \
+                 spec) to trace it"
             ),
             StopReason::NoBox { steps, distance } => write!(
                 f,
