@@ -103,6 +103,12 @@ impl<'a, const W: usize> Engine<'a, W> {
     /// With no box: whether a simplex of `range` (in S) lies more than
     /// [`DEFAULT_EXTENT_STEPS`] lattice steps from every seed.
     fn beyond_extent(&self, range: Range<usize>) -> bool {
+        self.beyond(range, DEFAULT_EXTENT_STEPS)
+    }
+
+    /// With no box: whether a simplex of `range` (in S) lies more than `steps` lattice steps
+    /// from every seed.
+    fn beyond(&self, range: Range<usize>, steps: u32) -> bool {
         let d = self.ctx.d;
         if self.ctx.domain.bbox.is_some() || self.origins.is_empty() {
             return false;
@@ -111,9 +117,9 @@ impl<'a, const W: usize> Engine<'a, W> {
         range.into_iter().any(|i| {
             self.ctx.codec.decode_vertex(self.s.key(i), &mut v[..d]);
             self.origins.chunks_exact(d).all(|o| {
-                o.iter().zip(&v[..d]).any(|(a, b)| {
-                    (i64::from(*a) - i64::from(*b)).unsigned_abs() > DEFAULT_EXTENT_STEPS as u64
-                })
+                o.iter()
+                    .zip(&v[..d])
+                    .any(|(a, b)| (i64::from(*a) - i64::from(*b)).unsigned_abs() > u64::from(steps))
             })
         })
     }
@@ -140,7 +146,9 @@ impl<'a, const W: usize> Engine<'a, W> {
                 });
                 return Ok(());
             }
-            if self.ctx.domain.bbox.is_none() && self.s.len() > super::NO_BOX_SIMPLICES {
+            if self.s.len() > super::NO_BOX_SIMPLICES
+                && self.beyond(front.range.clone(), super::NO_BOX_BUDGET_STEPS)
+            {
                 self.stats.stopped = Some(StopReason::NoBoxTooLarge {
                     simplices: self.s.len() as u64,
                 });

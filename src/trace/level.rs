@@ -20,6 +20,9 @@ use crate::triangulation::{Simplex, MAX_DIM};
 
 /// Fewest frontier simplices per parallel work item.
 const SIGMA_CHUNK: usize = 24;
+/// Most candidates a slice of a level names on the CPU (the limit and signals are checked
+/// between slices).
+const SLICE_CANDIDATES: usize = 1 << 20;
 /// Fewest found simplices per parallel work item (points).
 const POINT_CHUNK: usize = 128;
 /// Below this length a sort runs on the calling thread.
@@ -409,6 +412,17 @@ impl<const W: usize> Engine<'_, W> {
         Ok(Some(self.found([first, second], with_points)))
     }
 
+    /// The most cofacets of a frontier simplex, from a sample of up to 16 spread over it.
+    fn cofacets_per_simplex(&self, frontier: &Frontier) -> usize {
+        let r = &frontier.range;
+        let step = (r.len() / 16).max(1);
+        (r.start..r.end)
+            .step_by(step)
+            .map(|i| self.ctx.codec.decode(self.s.key(i)).cofacet_count())
+            .max()
+            .map_or(1, |c| usize::try_from(c).unwrap_or(usize::MAX))
+    }
+
     /// Round 1 of a level: the pivot names one facet per cofacet of every frontier simplex,
     /// and the oracle decides the named facets, each key once. Returns the named candidates,
     /// sorted, and the decisions in key order; `None` when the trace must stop.
@@ -426,16 +440,37 @@ impl<const W: usize> Engine<'_, W> {
     ) -> Result<Option<(Vec<Candidate<W>>, Decided<W>)>> {
         let len = frontier.range.len();
         let (d, n) = (self.ctx.d, self.ctx.k + 1);
-        let slice = self.ctx.oracle.level_slice().unwrap_or(len).max(1);
+        let per_cand = size_of::<Candidate<W>>() + n * 12 + d * 8 + 16;
+        // Naming holds a candidate per cofacet (and deferred ones): in high dimensions many
+        // per simplex. Slices keep it within a quarter of the memory left and within
+        // SLICE_CANDIDATES, so that the memory limit and a signal are heeded inside a level.
+        let cofacets = self.cofacets_per_simplex(frontier);
+        let naming = |r: usize| r.saturating_mul(cofacets).saturating_mul(2 * per_cand);
+        let room = self
+            .ctx
+            .max_memory
+            .saturating_sub(crate::memory::in_use(self.bytes()));
+        let by_memory = (usize::try_from(room / 4).unwrap_or(usize::MAX) / naming(1).max(1)).max(1);
+        let by_work = (SLICE_CANDIDATES / cofacets.max(1)).max(1);
+        let slice = self
+            .ctx
+            .oracle
+            .level_slice()
+            .unwrap_or(len)
+            .min(by_memory)
+            .min(by_work)
+            .max(1);
         let slices: Vec<Range<usize>> = (0..len)
             .step_by(slice)
             .map(|s| s..(s + slice).min(len))
             .collect();
         let sliced = slices.len() > 1;
-        let per_cand = size_of::<Candidate<W>>() + n * 12 + d * 8 + 16;
         let mut held = 0;
         let mut named_all = Vec::new();
         let mut taken = Taken::default();
+        if self.must_stop(naming(slices[0].len())) {
+            return Ok(None);
+        }
         let mut next = Some(self.name(frontier, slices[0].clone()));
         for c in 0..slices.len() {
             let mut named = next
@@ -457,6 +492,12 @@ impl<const W: usize> Engine<'_, W> {
                 .collect();
             let rows = cand_rows(&new, &frontier.rows, n);
             let keys: Vec<Key<W>> = new.iter().map(|c| c.key).collect();
+            if let Some(r) = slices.get(c + 1) {
+                let now = held + (rows.len() + keys.len()) * 8 * W;
+                if self.must_stop_growing(now + naming(r.len()), 2 * len) {
+                    return Ok(None);
+                }
+            }
             let (judged, named_next) = rayon::join(
                 || self.judge(&rows),
                 || slices.get(c + 1).map(|r| self.name(frontier, r.clone())),

@@ -130,17 +130,23 @@ pub enum StopReason {
         /// About that many units of length.
         distance: f64,
     },
-    /// With no box, the trace found more than [`NO_BOX_SIMPLICES`] crossed simplices: M may be
-    /// unbounded (a plane reaches the extent of [`DEFAULT_EXTENT_STEPS`] only after minutes
-    /// and gigabytes), and a box is needed to trace it.
+    /// With no box, the trace found more than [`NO_BOX_SIMPLICES`] crossed simplices and
+    /// reached [`NO_BOX_BUDGET_STEPS`] lattice steps from every seed: M may be unbounded (a
+    /// plane reaches the extent of [`DEFAULT_EXTENT_STEPS`] only after minutes and gigabytes),
+    /// and a box is needed to trace it.
     NoBoxTooLarge {
         /// The simplices found.
         simplices: u64,
     },
 }
 
-/// The most crossed simplices a trace with no box finds before it stops, asking for a box.
-pub const NO_BOX_SIMPLICES: usize = 1 << 21;
+/// The most crossed simplices a trace with no box finds, once it is [`NO_BOX_BUDGET_STEPS`]
+/// lattice steps from every seed, before it stops, asking for a box. (A closed manifold
+/// within that distance, such as S^7 in R^8, is traced whole however many it has.)
+pub const NO_BOX_SIMPLICES: usize = 1 << 22;
+
+/// See [`NO_BOX_SIMPLICES`].
+pub const NO_BOX_BUDGET_STEPS: u32 = 256;
 
 /// How far (in lattice steps, about one edge each, along any lattice axis) a trace with no
 /// box may go from its nearest seed: beyond that M is taken to be unbounded and the trace
