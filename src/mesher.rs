@@ -311,6 +311,21 @@ impl Mesher {
     }
 
     /// f, shared.
+    /// The same settings with f replaced by `g`, which must take and give as many numbers
+    /// (another wrapper of the same function, for one run of it).
+    pub fn replace_function(mut self, g: Arc<dyn ImplicitFunction>) -> Result<Self> {
+        let (d, k) = (self.ambient_dim(), self.codim());
+        if (g.ambient_dim(), g.codim()) != (d, k) {
+            return Err(Error::DimensionMismatch(format!(
+                "the function maps R^{} to R^{}, the mesher's R^{d} to R^{k}",
+                g.ambient_dim(),
+                g.codim()
+            )));
+        }
+        self.function = g;
+        Ok(self)
+    }
+
     pub fn shared_function(&self) -> Arc<dyn ImplicitFunction> {
         self.function.clone()
     }

@@ -49,6 +49,12 @@ impl PyFunction {
         }
     }
 
+    /// A wrapper of the same function for one run: its own stop flag, error slot and
+    /// counters, so that runs at once on one problem keep their errors and stops apart.
+    pub fn for_run(&self, py: Python<'_>, stop: Arc<AtomicBool>) -> Self {
+        PyFunction::new(self.f.clone_ref(py), self.d, self.k, stop)
+    }
+
     /// Clears the kept error and the counters before a run.
     pub fn reset(&self) {
         *self.error.lock().unwrap_or_else(|e| e.into_inner()) = None;

@@ -37,7 +37,6 @@ pub struct Problem {
     bbox: Option<Vec<[f64; 2]>>,
     equations: Option<Vec<String>>,
     callable: Option<Arc<PyFunction>>,
-    stop: Arc<AtomicBool>,
     /// How to make this problem again, (constructor, keywords): what pickling sends.
     recipe: Py<PyAny>,
 }
@@ -137,7 +136,6 @@ impl Problem {
             mesher: Mesher::from_problem(p),
             equations: Some(equations),
             callable: None,
-            stop: Arc::new(AtomicBool::new(false)),
         }
     }
 
@@ -145,6 +143,7 @@ impl Problem {
     #[allow(clippy::too_many_arguments)]
     fn mesher(
         &self,
+        run: &Run,
         seeds: Option<Vec<Vec<f64>>>,
         bbox: Option<Vec<[f64; 2]>>,
         backend: &str,
@@ -195,19 +194,28 @@ impl Problem {
         }
         // Like the CLI, the pool's threads poll for work while a trace runs, except for a
         // Python function, whose calls wait for the GIL.
+        if let Some(c) = &run.callable {
+            m = m.replace_function(c.clone()).map_err(to_py)?;
+        }
         Ok(m.warm(self.callable.is_none())
             .backend(backend.parse::<Backend>().map_err(to_py)?)
             .precision(precision)
-            .cancel(self.stop.clone()))
+            .cancel(run.stop.clone()))
+    }
+
+    /// What one run owns: a stop flag and, for a Python function, a wrapper of its own.
+    fn new_run(&self, py: Python<'_>) -> Run {
+        let stop = Arc::new(AtomicBool::new(false));
+        let callable = self
+            .callable
+            .as_ref()
+            .map(|c| Arc::new(c.for_run(py, stop.clone())));
+        Run { stop, callable }
     }
 
     /// Runs `mesher` in a worker thread; this thread waits with the GIL released, looking for
     /// Ctrl-C, and re-raises what the callable raised.
-    fn run(&self, py: Python<'_>, mesher: Mesher, exhaustive: bool) -> PyResult<Sample> {
-        self.stop.store(false, Ordering::Relaxed);
-        if let Some(c) = &self.callable {
-            c.reset();
-        }
+    fn run(&self, py: Python<'_>, run: Run, mesher: Mesher, exhaustive: bool) -> PyResult<Sample> {
         let (tx, rx) = mpsc::channel();
         let rx = Mutex::new(rx);
         let mut interrupt: Option<PyErr> = None;
@@ -232,7 +240,7 @@ impl Problem {
                     Err(RecvTimeoutError::Timeout) => {
                         if interrupt.is_none() {
                             if let Err(e) = py.check_signals() {
-                                self.stop.store(true, Ordering::Relaxed);
+                                run.stop.store(true, Ordering::Relaxed);
                                 interrupt = Some(e);
                             }
                         }
@@ -248,11 +256,11 @@ impl Problem {
         if let Some(e) = interrupt {
             return Err(e);
         }
-        if let Some(e) = self.callable.as_ref().and_then(|c| c.take_error()) {
+        if let Some(e) = run.callable.as_ref().and_then(|c| c.take_error()) {
             return Err(e);
         }
         let manifold: Manifold = outcome.map_err(to_py)?;
-        let calls = self.callable.as_ref().map(|c| c.stats());
+        let calls = run.callable.as_ref().map(|c| c.stats());
         if !manifold.complete() {
             let msg = format!(
                 "{}; the {} simplices found so far are returned with complete = False",
@@ -269,10 +277,18 @@ impl Problem {
         Ok(Sample::new(
             manifold,
             self.name.clone(),
-            self.callable.clone(),
+            run.callable,
             calls,
         ))
     }
+}
+
+/// What one trace or scan owns, so that runs at once on one problem (from Python threads)
+/// keep their stops and errors apart: its stop flag, and for a Python function a wrapper with
+/// its own error slot and counters.
+struct Run {
+    stop: Arc<AtomicBool>,
+    callable: Option<Arc<PyFunction>>,
 }
 
 fn panic_message(p: &Box<dyn std::any::Any + Send>) -> String {
@@ -416,8 +432,9 @@ impl Problem {
                 if let Some(b) = &r#box {
                     check_box(b, d)?;
                 }
+                // Each run wraps the function anew with its own stop flag (`Problem::new_run`).
                 let stop = Arc::new(AtomicBool::new(false));
-                let callable = Arc::new(PyFunction::new(f.unbind(), d, k, stop.clone()));
+                let callable = Arc::new(PyFunction::new(f.unbind(), d, k, stop));
                 let name = name.unwrap_or_else(|| "function".into());
                 let mut m = tri
                     .apply_to(Mesher::from_function(callable.clone()))?
@@ -434,7 +451,6 @@ impl Problem {
                     bbox: r#box,
                     equations: None,
                     callable: Some(callable),
-                    stop,
                     recipe,
                 })
             }
@@ -563,11 +579,12 @@ impl Problem {
         precision: Option<&str>,
         max_memory: Option<u64>,
     ) -> PyResult<Sample> {
-        let mut m = self.mesher(seeds, r#box, backend, threads, precision, max_memory)?;
+        let run = self.new_run(py);
+        let mut m = self.mesher(&run, seeds, r#box, backend, threads, precision, max_memory)?;
         if let Some(n) = search {
             m = m.search(n);
         }
-        self.run(py, m.search_seed(search_seed), false)
+        self.run(py, run, m.search_seed(search_seed), false)
     }
 
     /// Scans every k-simplex of the triangulation in the box (the problem's, or `box`).
@@ -582,8 +599,9 @@ impl Problem {
         precision: Option<&str>,
         max_memory: Option<u64>,
     ) -> PyResult<Sample> {
-        let m = self.mesher(None, r#box, backend, threads, precision, max_memory)?;
-        self.run(py, m, true)
+        let run = self.new_run(py);
+        let m = self.mesher(&run, None, r#box, backend, threads, precision, max_memory)?;
+        self.run(py, run, m, true)
     }
 
     /// The problem's name.
@@ -657,12 +675,17 @@ impl Problem {
         precision: Option<&str>,
         max_memory: Option<u64>,
     ) -> PyResult<Bound<'py, PyDict>> {
-        let m = self.mesher(None, Some(r#box), backend, threads, precision, max_memory)?;
+        let run = self.new_run(py);
+        let m = self.mesher(
+            &run,
+            None,
+            Some(r#box),
+            backend,
+            threads,
+            precision,
+            max_memory,
+        )?;
         let shard = isomesh::shard::Shard { lo, hi, closed };
-        self.stop.store(false, Ordering::Relaxed);
-        if let Some(c) = &self.callable {
-            c.reset();
-        }
         let part = py.detach(|| -> isomesh::Result<_> {
             let halo = match halo {
                 Some(h) => h,
@@ -670,7 +693,7 @@ impl Problem {
             };
             isomesh::shard::scan(&m, &shard, halo)
         });
-        if let Some(e) = self.callable.as_ref().and_then(|c| c.take_error()) {
+        if let Some(e) = run.callable.as_ref().and_then(|c| c.take_error()) {
             return Err(e);
         }
         crate::shard::part_to_py(py, &part.map_err(to_py)?)

@@ -160,3 +160,39 @@ def test_unbounded_inputs_and_thread_counts_are_capped():
 def test_the_report_measures_peak_memory():
     r = isomesh.Problem.preset("sphere", edge=0.05).trace().report
     assert r["peak_memory_bytes"] > 100_000, r["peak_memory_bytes"]
+
+
+def test_runs_at_once_on_one_problem_keep_their_errors_apart():
+    # Two threads scan one problem at once; the function raises only in the first one's box.
+    # Each run has its own stop flag and error slot: the first always raises, the second
+    # never does and finds what it finds alone.
+    import threading
+
+    def f(x):
+        if (x[:, 0] > 1.7).any():
+            raise Boom("beyond 1.7")
+        return x[:, 0] ** 2 + x[:, 1] ** 2 + x[:, 2] ** 2 - 0.8
+
+    p = problem(f)
+    wide = [[-1.3, 2.4], [-1.3, 1.3], [-1.3, 1.3]]
+    near = [[-1.2, 1.2]] * 3
+    alone = p.scan(box=near).simplex_count
+    for _ in range(6):
+        got = {}
+
+        def run(name, box):
+            try:
+                got[name] = p.scan(box=box).simplex_count
+            except Boom as e:
+                got[name] = e
+
+        threads = [
+            threading.Thread(target=run, args=("wide", wide)),
+            threading.Thread(target=run, args=("near", near)),
+        ]
+        for t in threads:
+            t.start()
+        for t in threads:
+            t.join()
+        assert isinstance(got["wide"], Boom), got
+        assert got["near"] == alone, got
