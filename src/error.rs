@@ -1,5 +1,7 @@
 //! The crate's error type.
 
+use std::fmt::Write as _;
+
 use crate::MAX_DIM;
 
 /// Everything that can go wrong in isomesh, as one typed error.
@@ -202,3 +204,63 @@ impl std::fmt::Display for ParseError {
 }
 
 impl std::error::Error for ParseError {}
+
+/// Longest run of non-space characters echoed whole.
+const MAX_WORD: usize = 64;
+/// Longest message echoed whole, in characters.
+const MAX_MESSAGE: usize = 4000;
+
+/// `s` fit to print: control characters (but newlines) and NUL escaped, runs of more than
+/// 64 non-space characters cut in the middle, the whole cut after 4000 characters.
+pub fn shown(s: &str) -> String {
+    let mut out = String::with_capacity(s.len().min(MAX_MESSAGE + 64));
+    for (li, line) in s.split('\n').enumerate() {
+        if li > 0 {
+            out.push('\n');
+        }
+        let mut word = String::new();
+        let mut word_len = 0;
+        for c in line.chars() {
+            if c == ' ' {
+                flush_word(&mut out, &word, word_len);
+                word.clear();
+                word_len = 0;
+                out.push(' ');
+            } else {
+                word_len += 1;
+                if word_len > MAX_WORD {
+                    // Only the ends of a long word are shown: keep its last few characters.
+                    if word.chars().count() > 2 * MAX_WORD {
+                        let head: String = word.chars().take(24).collect();
+                        let tail: Vec<char> = word.chars().rev().take(8).collect();
+                        word = head + &tail.into_iter().rev().collect::<String>();
+                    }
+                }
+                if c.is_control() {
+                    word.extend(c.escape_debug());
+                } else {
+                    word.push(c);
+                }
+            }
+        }
+        flush_word(&mut out, &word, word_len);
+    }
+    let n = out.chars().count();
+    if n > MAX_MESSAGE {
+        let mut cut: String = out.chars().take(MAX_MESSAGE).collect();
+        let _ = write!(cut, " ... ({} more characters)", n - MAX_MESSAGE);
+        return cut;
+    }
+    out
+}
+
+fn flush_word(out: &mut String, word: &str, len: usize) {
+    if len <= MAX_WORD {
+        out.push_str(word);
+        return;
+    }
+    let chars: Vec<char> = word.chars().collect();
+    out.extend(&chars[..24]);
+    let _ = write!(out, "...[{len} characters]...");
+    out.extend(&chars[chars.len() - 8..]);
+}

@@ -458,3 +458,25 @@ fn f_vanishing_on_a_region_fails_and_keeps_the_sample() {
         std::fs::remove_file(dir.path("r.json")).unwrap();
     }
 }
+
+/// A file replaced by a run keeps its permissions: a private (0600) output stays private.
+#[cfg(unix)]
+#[test]
+fn a_replaced_output_keeps_its_permissions() {
+    use std::os::unix::fs::PermissionsExt;
+    let dir = Scratch::new("modes");
+    for (name, mode) in [("s.csv", 0o600), ("r.json", 0o640), ("m.ply", 0o604)] {
+        std::fs::write(dir.path(name), "old").unwrap();
+        std::fs::set_permissions(dir.path(name), std::fs::Permissions::from_mode(mode)).unwrap();
+    }
+    let o = run(
+        &dir,
+        &["--out", "s.csv", "--out", "m.ply", "--report", "r.json"],
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    for (name, mode) in [("s.csv", 0o600), ("r.json", 0o640), ("m.ply", 0o604)] {
+        let m = std::fs::metadata(dir.path(name)).unwrap();
+        assert!(m.len() > 3, "{name} was not replaced");
+        assert_eq!(m.permissions().mode() & 0o777, mode, "{name}");
+    }
+}

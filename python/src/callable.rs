@@ -91,6 +91,17 @@ impl PyFunction {
             .to_pyarray(py);
         let result = self.f.bind(py).call1((x,))?;
         let np = py.import("numpy")?;
+        // Complex values have no sign: refused, not cast with a warning.
+        let complex = np
+            .call_method1("iscomplexobj", (&result,))?
+            .extract::<bool>()?;
+        if complex {
+            return Err(PyValueError::new_err(format!(
+                "function returned complex numbers: it must return real floats of shape \
+                 ({n}, {})",
+                self.k
+            )));
+        }
         let arr = np
             .call_method1("asarray", (result, np.getattr("float64")?))
             .map_err(|e| {

@@ -20,19 +20,20 @@ static ALLOC: isomesh::memory::CountingAlloc = isomesh::memory::CountingAlloc;
 
 /// An isomesh error as the Python exception a caller expects, with the CLI's message.
 pub(crate) fn to_py(e: isomesh::Error) -> PyErr {
+    use isomesh::error::shown;
     use isomesh::Error as E;
     match e {
         E::Io { ref source, .. } => {
-            let message = e.to_string();
+            let message = shown(&e.to_string());
             match source.kind() {
                 ErrorKind::NotFound => PyFileNotFoundError::new_err(message),
                 ErrorKind::PermissionDenied => PyPermissionError::new_err(message),
                 _ => PyOSError::new_err(message),
             }
         }
-        E::Output(m) => PyOSError::new_err(m),
-        e @ (E::Gpu(_) | E::Wgsl(_)) => PyRuntimeError::new_err(e.to_string()),
-        e => PyValueError::new_err(e.to_string()),
+        E::Output(m) => PyOSError::new_err(shown(&m)),
+        e @ (E::Gpu(_) | E::Wgsl(_)) => PyRuntimeError::new_err(shown(&e.to_string())),
+        e => PyValueError::new_err(shown(&e.to_string())),
     }
 }
 

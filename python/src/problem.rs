@@ -385,6 +385,13 @@ impl Problem {
                 check_seeds(&seeds, d)?;
                 let mut t = TriangulationSpec::default();
                 tri.apply(&mut t)?;
+                // Where d was read off the seeds or the box, a name the equations use beyond
+                // it is said to be so.
+                let inferred = match (ambient_dim, &variables, seeds.first()) {
+                    (None, None, Some(_)) => Some("the seeds"),
+                    (None, None, None) => Some("the box"),
+                    _ => None,
+                };
                 let spec = Spec {
                     ambient_dim: d,
                     variables,
@@ -398,7 +405,13 @@ impl Problem {
                 };
                 let p = spec
                     .resolve(name.as_deref().unwrap_or("problem"))
-                    .map_err(to_py)?;
+                    .map_err(|e| match (inferred, &e) {
+                        (Some(from), Error::Parse(_)) => PyValueError::new_err(format!(
+                            "{e} (the ambient dimension {d} was taken from {from}: give \
+                             ambient_dim, or seeds and box of the equations' dimension)"
+                        )),
+                        _ => to_py(e),
+                    })?;
                 Ok(Problem::from_problem(p, equations, recipe))
             }
             (None, Some(f)) => {

@@ -196,3 +196,15 @@ def test_runs_at_once_on_one_problem_keep_their_errors_apart():
             t.join()
         assert isinstance(got["wide"], Boom), got
         assert got["near"] == alone, got
+
+
+def test_complex_values_wrong_seed_lengths_and_control_characters():
+    with pytest.raises(ValueError, match="complex numbers"):
+        problem(lambda x: (x[:, 0] ** 2 + x[:, 1] ** 2 + x[:, 2] ** 2 - 1.0) + 0j).trace()
+    # d read off a seed of two coordinates: the message says where d came from.
+    with pytest.raises(ValueError, match="taken from the seeds"):
+        isomesh.Problem(["x^2 + y^2 + z^2 - 1"], seeds=[[0.6, 0.8]])
+    # User text echoed in a message is escaped, as on the command line.
+    with pytest.raises(ValueError) as info:
+        isomesh.Problem(["x^2 + y\x00 - 1"], ambient_dim=3)
+    assert "\x00" not in str(info.value) and "\\0" in str(info.value), str(info.value)

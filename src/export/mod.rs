@@ -35,8 +35,14 @@ pub fn write_atomic(
     let mut w = BufWriter::with_capacity(1 << 20, file);
     let written = body(&mut w).and_then(|()| w.flush());
     drop(w);
+    // A file replaced keeps its permissions (a private 0600 file stays private).
+    let kept = match std::fs::metadata(path) {
+        Ok(m) if m.is_file() => std::fs::set_permissions(&tmp, m.permissions()),
+        _ => Ok(()),
+    };
     // The target may have turned into something else meanwhile.
     let done = written
+        .and(kept)
         .map_err(io)
         .and_then(|()| safe::check_target(path))
         .and_then(|()| std::fs::rename(&tmp, path).map_err(io));
