@@ -17,7 +17,7 @@
 //! [`export`](crate::export)) stay public for callers who need them.
 
 use std::path::Path;
-use std::sync::atomic::AtomicBool;
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, OnceLock};
 use std::time::Instant;
 
@@ -602,6 +602,15 @@ impl Manifold {
     }
 
     fn built(&self) -> Result<&(Complex, Topology, f64)> {
+        self.built_cancellable(&AtomicBool::new(false))
+    }
+
+    /// [`Manifold::complex`] that stops, with an error, once `cancel` is set (Ctrl-C).
+    pub fn complex_cancellable(&self, cancel: &AtomicBool) -> Result<&Complex> {
+        self.built_cancellable(cancel).map(|c| &c.0)
+    }
+
+    fn built_cancellable(&self, cancel: &AtomicBool) -> Result<&(Complex, Topology, f64)> {
         if let Some(c) = self.complex.get() {
             return Ok(c);
         }
@@ -610,14 +619,23 @@ impl Manifold {
                 "nothing was found: there is no complex to build".into(),
             ));
         }
-        let c = Complex::build_within(
+        let interrupted = || Error::Trace("the cell complex was interrupted".into());
+        let c = Complex::build_cancellable(
             &self.sample,
             &*self.function,
             self.bbox.as_deref(),
             self.max_memory,
-        )?;
+            cancel,
+        )
+        .map_err(|e| {
+            if cancel.load(Ordering::Relaxed) {
+                interrupted()
+            } else {
+                e
+            }
+        })?;
         let t0 = Instant::now();
-        let t = c.topology();
+        let t = c.topology_cancellable(cancel).ok_or_else(interrupted)?;
         let secs = t0.elapsed().as_secs_f64();
         Ok(self.complex.get_or_init(|| (c, t, secs)))
     }

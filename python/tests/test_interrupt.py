@@ -51,3 +51,34 @@ def test_sigint_stops_a_long_trace(mode):
     assert lines[0].startswith("interrupted after"), out
     assert lines[1].startswith("next True"), out
     assert stopped_in < 20
+
+
+COMPLEX_CHILD = textwrap.dedent("""
+    import time
+    import isomesh
+    s = isomesh.Problem.preset("sphere", r=3, edge=0.02).trace(threads=2)
+    print("traced", s.simplex_count, flush=True)
+    t0 = time.monotonic()
+    try:
+        c = s.complex()
+        print("built", flush=True)
+    except KeyboardInterrupt:
+        print("interrupted after", round(time.monotonic() - t0, 2), flush=True)
+        print("next", isomesh.Problem.preset("circle").trace().complex() is not None, flush=True)
+""")
+
+
+@pytest.mark.skipif(sys.platform == "win32", reason="SIGINT")
+def test_sigint_stops_the_cell_complex():
+    child = subprocess.Popen([sys.executable, "-c", COMPLEX_CHILD], stdout=subprocess.PIPE,
+                             stderr=subprocess.PIPE, text=True)
+    assert child.stdout.readline().startswith("traced")
+    time.sleep(0.3)
+    sent = time.monotonic()
+    child.send_signal(signal.SIGINT)
+    out, err = child.communicate(timeout=60)
+    assert child.returncode == 0, err
+    lines = out.split("\n")
+    assert lines[0].startswith("interrupted after"), out
+    assert lines[1] == "next True", out
+    assert time.monotonic() - sent < 10
