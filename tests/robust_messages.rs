@@ -361,6 +361,10 @@ fn messages_name_the_flag_or_name_at_fault() {
     ];
     let huge = spec(
         "huge.toml",
+        &format!("ambient_dim = 18446744073709551615\n{sphere}"),
+    );
+    let large = spec(
+        "large.toml",
         &format!("ambient_dim = 18446744073709551614\n{sphere}"),
     );
     let custom = spec(
@@ -373,7 +377,11 @@ fn messages_name_the_flag_or_name_at_fault() {
     let mut cases = cases;
     cases.push((
         vec![huge],
-        "ambient_dim = 18446744073709551614 is not supported",
+        "ambient_dim = 18446744073709551615 is not supported",
+    ));
+    cases.push((
+        vec![large],
+        "ambient dimension 18446744073709551614 is not supported",
     ));
     cases.push((
         vec![custom, "--edge".into(), "0.2".into()],

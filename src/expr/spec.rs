@@ -126,12 +126,13 @@ fn infer_dim() -> usize {
     INFER_DIM
 }
 
-/// `ambient_dim` as written; a value beyond any dimension is refused here, so that none
-/// reads as left out (the sentinel [`INFER_DIM`]).
+/// `ambient_dim` as written; the one value that would read as left out (the sentinel
+/// [`INFER_DIM`]) is refused here.
 fn written_dim<'de, D: serde::Deserializer<'de>>(d: D) -> std::result::Result<usize, D::Error> {
     let v = u64::deserialize(d)?;
     match usize::try_from(v) {
-        Ok(n) if n <= crate::MAX_DIM => Ok(n),
+        // Too large values are refused by `resolve` as such (`Error::Dimension`).
+        Ok(n) if n != INFER_DIM => Ok(n),
         _ => Err(serde::de::Error::custom(format!(
             "ambient_dim = {v} is not supported: isomesh handles 1 to {}",
             crate::MAX_DIM
