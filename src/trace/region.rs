@@ -12,12 +12,13 @@ pub fn in_box(bbox: &[[f64; 2]], x: &[f64]) -> bool {
     bbox.iter().zip(x).all(|([lo, hi], v)| lo <= v && v <= hi)
 }
 
-/// How far outside a face of the box row `[lo, hi]` a point still counts as inside: 2^-40 of
-/// the row's size, well above the rounding of crossing points (about 2^-52 of it) and far
-/// below any feature a triangulation resolves.
+/// How far outside a face of the box row `[lo, hi]` a point still counts as inside: 2^-46 of
+/// the row's size (its width or its largest end), well above the rounding of crossing points
+/// (a few 2^-53 of it) and below any distance a user's box tells apart (1e-13 of it is not
+/// inside).
 #[inline]
 pub fn box_slack([lo, hi]: [f64; 2]) -> f64 {
-    const SLACK: f64 = 1.0 / (1u64 << 40) as f64;
+    const SLACK: f64 = 1.0 / (1u64 << 46) as f64;
     SLACK * (hi - lo).max(lo.abs()).max(hi.abs())
 }
 
