@@ -35,7 +35,7 @@ use std::time::Instant;
 use serde::Serialize;
 
 pub use oracle::{CpuOracle, Decisions, Oracle};
-pub use region::{coord_bits, in_box, lattice_bounds, Domain};
+pub use region::{box_slack, coord_bits, in_box, in_box_closed, lattice_bounds, Domain};
 use sample::sample_from;
 pub use sample::Sample;
 pub use scan::{exhaustive, scan_grid, ScanGrid, MAX_SCAN_DIM};
