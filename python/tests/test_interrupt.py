@@ -63,8 +63,11 @@ COMPLEX_CHILD = textwrap.dedent("""
         c = s.complex()
         print("built", flush=True)
     except KeyboardInterrupt:
-        print("interrupted after", round(time.monotonic() - t0, 2), flush=True)
-        print("next", isomesh.Problem.preset("circle").trace().complex() is not None, flush=True)
+        print("interrupted after", round(time.monotonic() - t0, 3), flush=True)
+        # Nothing was kept half built: the whole build runs again, and is timed.
+        t0 = time.monotonic()
+        s.complex()
+        print("whole in", round(time.monotonic() - t0, 3), flush=True)
 """)
 
 
@@ -73,12 +76,13 @@ def test_sigint_stops_the_cell_complex():
     child = subprocess.Popen([sys.executable, "-c", COMPLEX_CHILD], stdout=subprocess.PIPE,
                              stderr=subprocess.PIPE, text=True)
     assert child.stdout.readline().startswith("traced")
-    time.sleep(0.3)
-    sent = time.monotonic()
+    time.sleep(0.2)
     child.send_signal(signal.SIGINT)
-    out, err = child.communicate(timeout=60)
+    out, err = child.communicate(timeout=120)
     assert child.returncode == 0, err
     lines = out.split("\n")
     assert lines[0].startswith("interrupted after"), out
-    assert lines[1] == "next True", out
-    assert time.monotonic() - sent < 10
+    assert lines[1].startswith("whole in"), out
+    # Stopped during the build, not when it was done.
+    interrupted, whole = float(lines[0].split()[-1]), float(lines[1].split()[-1])
+    assert interrupted < 0.5 * whole, out
