@@ -310,7 +310,6 @@ impl Mesher {
         self.max_memory
     }
 
-    /// f, shared.
     /// The same settings with f replaced by `g`, which must take and give as many numbers
     /// (another wrapper of the same function, for one run of it).
     pub fn replace_function(mut self, g: Arc<dyn ImplicitFunction>) -> Result<Self> {
@@ -326,6 +325,7 @@ impl Mesher {
         Ok(self)
     }
 
+    /// f, shared.
     pub fn shared_function(&self) -> Arc<dyn ImplicitFunction> {
         self.function.clone()
     }

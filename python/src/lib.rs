@@ -2,6 +2,7 @@
 //! NumPy arrays. The Python package `isomesh` re-exports it.
 
 mod callable;
+mod interrupt;
 mod problem;
 mod result;
 mod shard;

@@ -2,11 +2,8 @@
 //! box and triangulation; `trace()` and `scan()` run it with the GIL released.
 
 use std::collections::BTreeMap;
-use std::panic::{catch_unwind, AssertUnwindSafe};
-use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::mpsc::{self, RecvTimeoutError};
-use std::sync::{Arc, Mutex};
-use std::time::Duration;
+use std::sync::atomic::AtomicBool;
+use std::sync::Arc;
 
 use isomesh::expr::{preset_spec, Spec, TriangulationSpec};
 use isomesh::gpu::Precision;
@@ -16,11 +13,9 @@ use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyString, PyTuple};
 
 use crate::callable::PyFunction;
+use crate::interrupt::interruptible;
 use crate::result::Sample;
 use crate::to_py;
-
-/// How often the calling thread looks for Ctrl-C while a run works.
-const POLL: Duration = Duration::from_millis(50);
 
 /// An implicit manifold f^-1(0) to mesh: f, seeds near it, a box, a triangulation.
 ///
@@ -216,50 +211,13 @@ impl Problem {
     /// Runs `mesher` in a worker thread; this thread waits with the GIL released, looking for
     /// Ctrl-C, and re-raises what the callable raised.
     fn run(&self, py: Python<'_>, run: Run, mesher: Mesher, exhaustive: bool) -> PyResult<Sample> {
-        let (tx, rx) = mpsc::channel();
-        let rx = Mutex::new(rx);
-        let mut interrupt: Option<PyErr> = None;
-        let outcome = std::thread::scope(|s| {
-            s.spawn(move || {
-                let r = catch_unwind(AssertUnwindSafe(|| {
-                    if exhaustive {
-                        mesher.scan()
-                    } else {
-                        mesher.trace()
-                    }
-                }));
-                let _ = tx.send(r.unwrap_or_else(|p| Err(Error::Trace(panic_message(&p)))));
-            });
-            loop {
-                match py.detach(|| {
-                    rx.lock()
-                        .unwrap_or_else(|e| e.into_inner())
-                        .recv_timeout(POLL)
-                }) {
-                    Ok(r) => break r,
-                    Err(RecvTimeoutError::Timeout) => {
-                        if interrupt.is_none() {
-                            if let Err(e) = py.check_signals() {
-                                run.stop.store(true, Ordering::Relaxed);
-                                interrupt = Some(e);
-                            }
-                        }
-                    }
-                    Err(RecvTimeoutError::Disconnected) => {
-                        break Err(Error::Trace(
-                            "the worker thread ended without a result".into(),
-                        ))
-                    }
-                }
+        let manifold: Manifold = interruptible(py, &run.stop, run.callable.as_deref(), || {
+            if exhaustive {
+                mesher.scan()
+            } else {
+                mesher.trace()
             }
-        });
-        if let Some(e) = interrupt {
-            return Err(e);
-        }
-        if let Some(e) = run.callable.as_ref().and_then(|c| c.take_error()) {
-            return Err(e);
-        }
-        let manifold: Manifold = outcome.map_err(to_py)?;
+        })?;
         let calls = run.callable.as_ref().map(|c| c.stats());
         if !manifold.complete() {
             let msg = format!(
@@ -289,15 +247,6 @@ impl Problem {
 struct Run {
     stop: Arc<AtomicBool>,
     callable: Option<Arc<PyFunction>>,
-}
-
-fn panic_message(p: &Box<dyn std::any::Any + Send>) -> String {
-    let what = p
-        .downcast_ref::<&str>()
-        .map(|s| s.to_string())
-        .or_else(|| p.downcast_ref::<String>().cloned())
-        .unwrap_or_else(|| "unknown".into());
-    format!("internal error (please report): {what}")
 }
 
 #[pymethods]

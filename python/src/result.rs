@@ -2,7 +2,7 @@
 //! cell complex built from them), with NumPy arrays and every output format of the CLI.
 
 use std::path::PathBuf;
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::AtomicBool;
 use std::sync::{Arc, OnceLock};
 use std::time::Instant;
 
@@ -18,6 +18,7 @@ use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
 use crate::callable::{CallStats, PyFunction};
+use crate::interrupt::interruptible;
 use crate::{json_to_py, to_py};
 
 /// The crossed k-simplices of a trace or scan: keys, points on M, counters.
@@ -59,60 +60,6 @@ fn released<T: Send>(
         return Err(e);
     }
     r.map_err(to_py)
-}
-
-/// Runs `work` in a worker thread with the GIL released while this thread looks for Ctrl-C
-/// every 50 ms: a KeyboardInterrupt sets the flag `work` polls, waits for it to stop, and is
-/// raised; otherwise what the Python function raised, or `work`'s error, is.
-fn interruptible<T: Send>(
-    py: Python<'_>,
-    callable: &Option<Arc<PyFunction>>,
-    work: impl FnOnce(&AtomicBool) -> isomesh::Result<T> + Send,
-) -> PyResult<T> {
-    if let Some(c) = callable {
-        c.reset();
-    }
-    let cancel = AtomicBool::new(false);
-    let (tx, rx) = std::sync::mpsc::channel();
-    let rx = std::sync::Mutex::new(rx);
-    let mut interrupt = None;
-    let r = std::thread::scope(|s| {
-        let cancel = &cancel;
-        s.spawn(move || {
-            let _ = tx.send(work(cancel));
-        });
-        loop {
-            let wait = || {
-                rx.lock()
-                    .unwrap_or_else(|e| e.into_inner())
-                    .recv_timeout(std::time::Duration::from_millis(50))
-            };
-            match py.detach(wait) {
-                Ok(r) => break Some(r),
-                Err(std::sync::mpsc::RecvTimeoutError::Timeout) => {
-                    if interrupt.is_none() {
-                        if let Err(e) = py.check_signals() {
-                            cancel.store(true, Ordering::Relaxed);
-                            interrupt = Some(e);
-                        }
-                    }
-                }
-                Err(std::sync::mpsc::RecvTimeoutError::Disconnected) => break None,
-            }
-        }
-    });
-    if let Some(e) = interrupt {
-        return Err(e);
-    }
-    if let Some(e) = callable.as_ref().and_then(|c| c.take_error()) {
-        return Err(e);
-    }
-    match r {
-        Some(r) => r.map_err(to_py),
-        None => Err(to_py(isomesh::Error::Trace(
-            "the worker thread ended without a result".into(),
-        ))),
-    }
 }
 
 pub(crate) fn array2<'py, T: numpy::Element>(
@@ -193,8 +140,12 @@ impl Sample {
     fn complex(&self, py: Python<'_>) -> PyResult<Complex> {
         let inner = self.inner.clone();
         // Ctrl-C stops the build and raises KeyboardInterrupt.
-        interruptible(py, &self.callable, move |cancel| {
-            inner.complex_cancellable(cancel).map(|_| ())
+        if let Some(c) = &self.callable {
+            c.reset();
+        }
+        let cancel = AtomicBool::new(false);
+        interruptible(py, &cancel, self.callable.as_deref(), || {
+            inner.complex_cancellable(&cancel).map(|_| ())
         })?;
         Ok(Complex {
             inner: Source::Run(self.inner.clone()),

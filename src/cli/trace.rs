@@ -219,7 +219,7 @@ fn parse_size(s: &str) -> std::result::Result<(usize, usize), String> {
 /// The size of a picture when --png-size is not given.
 pub const DEFAULT_PNG_SIZE: (usize, usize) = (1200, 900);
 
-/// Parses a positive finite edge length.
+/// Parses an edge length within [`EDGE_RANGE`].
 fn parse_edge(s: &str) -> std::result::Result<f64, String> {
     match s.trim().parse::<f64>() {
         Ok(v) if EDGE_RANGE.contains(&v) => Ok(v),
@@ -473,11 +473,12 @@ fn run_in_pool(p: &Problem, args: &TraceArgs, plan: &Plan, threads: usize) -> Re
     let mut written = Vec::new();
     // Each output is written, or fails, on its own: one that cannot be written (a full disk,
     // a bad path) is reported and the others, and the report, are still written.
-    let mut failed: Vec<(String, Error)> = Vec::new();
-    let mut attempt = |name: String, result: Result<()>| match result {
+    let mut failed: Vec<Error> = Vec::new();
+    let mut stdout_failed = false;
+    let mut attempt = |result: Result<()>| match result {
         Ok(()) => true,
         Err(e) => {
-            failed.push((name, e));
+            failed.push(e);
             false
         }
     };
@@ -489,11 +490,11 @@ fn run_in_pool(p: &Problem, args: &TraceArgs, plan: &Plan, threads: usize) -> Re
                 let result = write_sample_to(&mut out, &sample, format)
                     .and_then(|()| out.flush())
                     .map_err(|e| Error::io("standard output", e));
-                attempt("standard output".into(), result);
+                stdout_failed = !attempt(result);
             } else {
                 phase(&format!("writing {}", shown(&o.path.display().to_string())));
                 let result = write_sample(&o.path, &sample, format);
-                if attempt(o.path.display().to_string(), result) {
+                if attempt(result) {
                     written.push(o.path.clone());
                 }
             }
@@ -543,7 +544,7 @@ fn run_in_pool(p: &Problem, args: &TraceArgs, plan: &Plan, threads: usize) -> Re
                     if let (Output::Mesh(format), false) = (&o.kind, stopping()) {
                         phase(&format!("writing {}", shown(&o.path.display().to_string())));
                         let result = write_mesh_as(&o.path, &mesh, *format, encoding);
-                        if attempt(o.path.display().to_string(), result) {
+                        if attempt(result) {
                             written.push(o.path.clone());
                         }
                     }
@@ -555,7 +556,7 @@ fn run_in_pool(p: &Problem, args: &TraceArgs, plan: &Plan, threads: usize) -> Re
                         check_memory("the picture", w.saturating_mul(h).saturating_mul(16), limit)
                             .and_then(|()| Picture::render(&mesh, w, h, &caption(&p.name, d, topo)))
                             .and_then(|pic| pic.write_png(path));
-                    if attempt(path.display().to_string(), result) {
+                    if attempt(result) {
                         written.push(path.clone());
                     }
                 }
@@ -564,12 +565,11 @@ fn run_in_pool(p: &Problem, args: &TraceArgs, plan: &Plan, threads: usize) -> Re
     }
     // The first error decides the exit status and the report's error; every failed output is
     // named on standard error.
-    for (_, e) in failed.iter().skip(usize::from(failure.is_none())) {
+    for e in failed.iter().skip(usize::from(failure.is_none())) {
         eprintln!("error: {e}");
     }
-    let stdout_failed = failed.iter().any(|(name, _)| name == "standard output");
     if failure.is_none() && !failed.is_empty() {
-        failure = Some(failed.remove(0).1);
+        failure = Some(failed.remove(0));
     }
     let st = &sample.stats;
     let n = sample.len();

@@ -5,6 +5,7 @@ use std::sync::Arc;
 
 use super::ast::Expr;
 use super::parser::{check_counts, parse_expr_at, ParseError, Scope};
+use crate::cpu::solve::pow2_inverse;
 use crate::error::{check_finite_in, Error, Result};
 use crate::expr::program::{Program, Scratch};
 use crate::linalg::Lu;
@@ -397,14 +398,14 @@ pub fn newton_project(f: &dyn ImplicitFunction, x0: &[f64], tol: f64) -> Result<
         if j.iter().any(|v| !v.is_finite()) {
             break;
         }
-        // Rows of a scale whose products would overflow or underflow are brought near 1 by
-        // a power of two (the step does not change; other rows are left as they are).
+        // Rows of a scale whose products would overflow or underflow are brought to [1, 2)
+        // by a power of two (the step does not change; other rows are left as they are).
         for r in 0..k {
             let m = j[r * d..(r + 1) * d]
                 .iter()
                 .fold(0.0f64, |a, v| a.max(v.abs()));
             if m > 0.0 && !(2f64.powi(-100)..=2f64.powi(100)).contains(&m) {
-                let s = 2f64.powi(-m.log2().round().clamp(-1000.0, 1000.0) as i32);
+                let s = pow2_inverse(m);
                 j[r * d..(r + 1) * d].iter_mut().for_each(|v| *v *= s);
                 fx[r] *= s;
             }
@@ -491,7 +492,7 @@ pub fn is_singular_at(f: &dyn ImplicitFunction, x: &[f64], h: f64) -> bool {
     }
     // A power of two near 1 / scale (exact): the rows' products then neither overflow nor
     // underflow where it matters.
-    let s = 2f64.powi(-scale.log2().round().clamp(-1000.0, 1000.0) as i32);
+    let s = pow2_inverse(scale);
     j.iter_mut().for_each(|v| *v *= s);
     let scale = scale * s;
     // Modified Gram-Schmidt over the rows.
