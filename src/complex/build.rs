@@ -93,16 +93,8 @@ fn raw_levels<const W: usize>(
         }
         let cj = KeyCodec::new(d, k + j, bits)?;
         // The pairs are the peak: refuse up front rather than exhaust memory.
-        let count: u64 = prev
-            .par_iter()
-            .map_init(
-                || prev_codec.scratch(),
-                |sigma, key| {
-                    prev_codec.decode_into(key, sigma);
-                    sigma.cofacet_count()
-                },
-            )
-            .sum();
+        let counts = cofacet_counts(&prev, &prev_codec);
+        let count: u64 = counts.iter().sum();
         let need = crate::memory::in_use(held_bytes::<W>(&levels, prev.len()) + s.memory_bytes())
             + peak_bytes::<W>(count);
         if need > max_memory {
@@ -113,28 +105,12 @@ fn raw_levels<const W: usize>(
                 crate::memory::human_bytes(max_memory)
             )));
         }
-        let mut pairs = cofacet_pairs::<W>(&prev, &prev_codec, &cj)?;
+        let mut pairs = cofacet_pairs::<W>(&prev, &prev_codec, &cj, &counts)?;
         pairs.par_sort_unstable();
-        let mut keys = Vec::new();
-        let mut cells = Level::default();
-        let mut mixed = Vec::new();
-        for group in pairs.chunk_by(|a, b| a.0 == b.0) {
-            if j == 1 {
-                if group.iter().all(|p| p.1 as usize >= n) {
-                    continue;
-                }
-                if group.len() != 2 {
-                    defects.push(group[0].1);
-                    continue;
-                }
-            }
-            keys.push(group[0].0);
-            cells.push(group.iter().map(|p| p.1));
-            mixed.push(group.iter().any(|p| prev_mixed[p.1 as usize]));
-        }
-        if cells.offsets.is_empty() {
-            cells.offsets.push(0);
-        }
+        let run = run_len(pairs.len());
+        let (keys, mut cells, mixed) =
+            group_cofacets(&pairs, &prev_mixed, (j, n), run, &mut defects);
+        drop(pairs);
         cells.interior = cells.len();
         let kept = if keep_keys {
             keys.iter().flatten().copied().collect()
@@ -169,31 +145,65 @@ fn peak_bytes<const W: usize>(cofacets: u64) -> u64 {
     cofacets * (std::mem::size_of::<([u64; W], u32)>() + W * 8 + 5) as u64
 }
 
-/// (cofacet key, index) for every cofacet of every simplex in `keys`.
+/// Simplices per parallel work item when listing cofacets.
+const CHUNK: usize = 256;
+/// Fewest cofacet pairs per parallel work item when grouping them into cells.
+const GROUP_CHUNK: usize = 1 << 14;
+
+/// How many cofacets each [`CHUNK`] of the simplices `keys` has.
+fn cofacet_counts<const W: usize>(keys: &[[u64; W]], codec: &KeyCodec) -> Vec<u64> {
+    keys.par_chunks(CHUNK)
+        .map_init(
+            || codec.scratch(),
+            |sigma, keys| {
+                keys.iter()
+                    .map(|key| {
+                        codec.decode_into(key, sigma);
+                        sigma.cofacet_count()
+                    })
+                    .sum()
+            },
+        )
+        .collect()
+}
+
+/// (cofacet key, index) for every cofacet of every simplex in `keys`; `counts` holds how
+/// many cofacets each [`CHUNK`] of them has. Written in place, chunk by chunk in parallel,
+/// so that no thread copies or first touches the whole list alone.
 fn cofacet_pairs<const W: usize>(
     keys: &[[u64; W]],
     codec: &KeyCodec,
     cofacet_codec: &KeyCodec,
+    counts: &[u64],
 ) -> Result<Vec<([u64; W], u32)>> {
     if keys.len() > u32::MAX as usize {
         return Err(Error::Trace("too many cells for 32-bit indices".into()));
     }
-    const CHUNK: usize = 256;
-    let parts = keys
-        .par_chunks(CHUNK)
-        .enumerate()
-        .map(|(c, chunk)| -> Result<Vec<_>> {
+    let total = usize::try_from(counts.iter().sum::<u64>())
+        .map_err(|_| Error::Trace("too many cofacets for this machine".into()))?;
+    let mut pairs = zeroed(total, ([0u64; W], 0u32));
+    let mut outs = Vec::with_capacity(counts.len());
+    let mut rest = &mut pairs[..];
+    for &c in counts {
+        let (out, tail) = rest.split_at_mut(c as usize);
+        outs.push(out);
+        rest = tail;
+    }
+    keys.par_chunks(CHUNK).zip(outs).enumerate().try_for_each(
+        |(c, (chunk, out))| -> Result<()> {
             let mut sigma = codec.scratch();
-            let mut acc = Vec::with_capacity(chunk.len() * 4);
-            let mut out = [0u64; W];
+            let mut at = 0;
             for (j, key) in chunk.iter().enumerate() {
                 let i = (c * CHUNK + j) as u32;
                 let mut err = None;
                 codec.decode_into(key, &mut sigma);
                 sigma.for_each_cofacet(|tau| {
                     if err.is_none() {
-                        match cofacet_codec.encode(tau, &mut out) {
-                            Ok(()) => acc.push((out, i)),
+                        match cofacet_codec.encode(tau, &mut out[at].0) {
+                            Ok(()) => {
+                                out[at].1 = i;
+                                at += 1;
+                            }
                             Err(e) => err = Some(e),
                         }
                     }
@@ -202,16 +212,134 @@ fn cofacet_pairs<const W: usize>(
                     return Err(e);
                 }
             }
-            Ok(acc)
+            debug_assert_eq!(at, out.len());
+            Ok(())
+        },
+    )?;
+    Ok(pairs)
+}
+
+/// The cells of level `j` from its sorted (cofacet key, facet index) `pairs`: their keys,
+/// their facet lists and whether any facet is mixed (`prev_mixed`). For j = 1, edges with
+/// no vertex among the first `n` (S) are dropped and those without exactly two vertices are
+/// appended to `defects`. Grouped in parallel over runs of about `run` pairs that start at
+/// a new key, counted first and then written in place; the result does not depend on `run`.
+fn group_cofacets<const W: usize>(
+    pairs: &[([u64; W], u32)],
+    prev_mixed: &[bool],
+    (j, n): (usize, usize),
+    run: usize,
+    defects: &mut Vec<u32>,
+) -> (Vec<[u64; W]>, Level, Vec<bool>) {
+    // A group is a cell, or dropped, or a defect.
+    let kind = |group: &[([u64; W], u32)]| {
+        if j == 1 && group.iter().all(|p| p.1 as usize >= n) {
+            None
+        } else {
+            Some(j != 1 || group.len() == 2)
+        }
+    };
+    let runs = runs_of(pairs, run);
+    // (cells, facets) of each run.
+    let sizes: Vec<(usize, usize)> = runs
+        .par_iter()
+        .map(|run| {
+            run.chunk_by(|a, b| a.0 == b.0)
+                .filter(|g| kind(g) == Some(true))
+                .fold((0, 0), |(c, f), g| (c + 1, f + g.len()))
         })
-        .collect::<Result<Vec<_>>>()?;
-    Ok(parts.concat())
+        .collect();
+    let (cells, facets) = sizes.iter().fold((0, 0), |(c, f), s| (c + s.0, f + s.1));
+    let mut keys = zeroed(cells, [0u64; W]);
+    let mut mixed = zeroed(cells, false);
+    let mut offsets = zeroed(cells + 1, 0u32);
+    let mut lists = zeroed(facets, 0u32);
+    let mut outs = Vec::with_capacity(runs.len());
+    let (mut k, mut m, mut o, mut l) = (
+        &mut keys[..],
+        &mut mixed[..],
+        &mut offsets[1..],
+        &mut lists[..],
+    );
+    let mut base = 0u32;
+    for &(c, f) in &sizes {
+        let (k0, k1) = k.split_at_mut(c);
+        let (m0, m1) = m.split_at_mut(c);
+        let (o0, o1) = o.split_at_mut(c);
+        let (l0, l1) = l.split_at_mut(f);
+        outs.push((k0, m0, o0, l0, base));
+        (k, m, o, l) = (k1, m1, o1, l1);
+        base += f as u32;
+    }
+    let found: Vec<Vec<u32>> = runs
+        .into_par_iter()
+        .zip(outs)
+        .map(|(run, (k, m, o, l, base))| {
+            let (mut c, mut f) = (0, 0);
+            let mut defects = Vec::new();
+            for group in run.chunk_by(|a, b| a.0 == b.0) {
+                match kind(group) {
+                    None => {}
+                    Some(false) => defects.push(group[0].1),
+                    Some(true) => {
+                        k[c] = group[0].0;
+                        m[c] = group.iter().any(|p| prev_mixed[p.1 as usize]);
+                        for (slot, p) in l[f..f + group.len()].iter_mut().zip(group) {
+                            *slot = p.1;
+                        }
+                        f += group.len();
+                        o[c] = base + f as u32;
+                        c += 1;
+                    }
+                }
+            }
+            defects
+        })
+        .collect();
+    defects.extend(found.into_iter().flatten());
+    (keys, Level::from_lists(offsets, lists, cells), mixed)
+}
+
+/// A vector of `len` copies of `value`, written in parallel (the pages are first touched
+/// by every thread, not one).
+fn zeroed<T: Clone + Send + Sync>(len: usize, value: T) -> Vec<T> {
+    let mut v = Vec::with_capacity(len);
+    v.par_extend(rayon::iter::repeat_n(value, len));
+    v
+}
+
+/// How many of `len` sorted pairs a parallel work item groups: about four items per
+/// thread, at least [`GROUP_CHUNK`].
+fn run_len(len: usize) -> usize {
+    len.div_ceil(4 * rayon::current_num_threads())
+        .max(GROUP_CHUNK)
+}
+
+/// `sorted` cut into consecutive runs of at least `want` (at least 1) items, each cut
+/// where the key changes, so that no key spans two runs.
+fn runs_of<K: PartialEq, V>(sorted: &[(K, V)], want: usize) -> Vec<&[(K, V)]> {
+    let want = want.max(1);
+    let mut runs = Vec::new();
+    let mut rest = sorted;
+    while rest.len() > want {
+        let mut cut = want;
+        while cut < rest.len() && rest[cut].0 == rest[cut - 1].0 {
+            cut += 1;
+        }
+        let (run, tail) = rest.split_at(cut);
+        runs.push(run);
+        rest = tail;
+    }
+    if !rest.is_empty() || runs.is_empty() {
+        runs.push(rest);
+    }
+    runs
 }
 
 /// Cuts the mixed cells at the domain's boundary: each mixed j-cell keeps its facets and
 /// gains a boundary facet, the (j-1)-cell where it leaves the domain, whose facets are the
 /// boundary cells of the cell's mixed facets.
-fn clip(s: &Sample, domain: &Domain, raw: Vec<RawLevel>, d: usize, m: usize) -> Complex {
+fn clip(s: &Sample, domain: &Domain, mut raw: Vec<RawLevel>, d: usize, m: usize) -> Complex {
     let n = s.len();
     // Boundary vertices, one per mixed edge, where the edge leaves the domain.
     let mut points = s.points();
@@ -254,6 +382,16 @@ fn clip(s: &Sample, domain: &Domain, raw: Vec<RawLevel>, d: usize, m: usize) -> 
         .collect();
     let mut levels = Vec::with_capacity(m);
     for j in 1..=m {
+        if !raw[j - 1].mixed.contains(&true) {
+            // No cell here meets the boundary, so none above does: the level as built.
+            let mut out = std::mem::take(&mut raw[j - 1].cells);
+            if out.offsets.is_empty() {
+                out.offsets.push(0);
+            }
+            out.interior = out.len();
+            levels.push(out);
+            continue;
+        }
         let level = &raw[j - 1];
         let bi = &boundary_index[j - 1];
         let mut out = Level::default();
@@ -366,6 +504,74 @@ mod tests {
         let mut f = f.to_vec();
         f.sort_unstable();
         f
+    }
+
+    #[test]
+    fn runs_cover_the_pairs_in_order_and_never_split_a_key() {
+        let keys = [1, 1, 2, 3, 3, 3, 4, 6, 6, 7];
+        let pairs: Vec<(u32, usize)> = keys.iter().copied().zip(0..).collect();
+        for want in 0..=pairs.len() + 1 {
+            let runs = runs_of(&pairs, want);
+            assert_eq!(runs.concat(), pairs, "run length {want}");
+            for (i, r) in runs.iter().enumerate() {
+                assert!(!r.is_empty(), "run length {want}");
+                if i + 1 < runs.len() {
+                    assert!(r.len() >= want, "run length {want}: {r:?}");
+                    assert_ne!(r.last().unwrap().0, runs[i + 1][0].0, "run length {want}");
+                }
+            }
+        }
+        assert_eq!(runs_of(&pairs[..0], 3), vec![&pairs[..0]]);
+        assert_eq!(runs_of(&pairs, 4).len(), 2);
+    }
+
+    #[test]
+    fn grouping_in_runs_of_any_length_gives_the_same_cells() {
+        // Keys with groups of 1, 2 and 3 pairs; facets 0..6, of which 4.. are not in S (n = 4)
+        // and mixed, and so is 1.
+        let raw = [
+            (1, 0),
+            (1, 4),
+            (2, 5),
+            (3, 1),
+            (3, 2),
+            (3, 6),
+            (5, 2),
+            (5, 3),
+            (7, 4),
+            (7, 5),
+        ];
+        let pairs: Vec<([u64; 1], u32)> = raw.iter().map(|&(k, f)| ([k], f)).collect();
+        let prev_mixed = [false, true, false, false, true, true, true];
+        for j in [1, 2] {
+            let mut defects = Vec::new();
+            let whole = group_cofacets(&pairs, &prev_mixed, (j, 4), usize::MAX, &mut defects);
+            let lists = |l: &Level| {
+                (0..l.len())
+                    .map(|i| l.facets(i).to_vec())
+                    .collect::<Vec<_>>()
+            };
+            if j == 1 {
+                // Keys 2 and 7 lie outside S; key 3 has three vertices: a defect.
+                assert_eq!(whole.0, [[1], [5]]);
+                assert_eq!(lists(&whole.1), [vec![0, 4], vec![2, 3]]);
+                assert_eq!(whole.2, [true, false]);
+                assert_eq!(defects, [1]);
+            } else {
+                assert_eq!(whole.0.len(), 5);
+                assert_eq!(lists(&whole.1)[2], [1, 2, 6]);
+                assert_eq!(whole.2, [true, true, true, false, true]);
+            }
+            for run in 0..=pairs.len() {
+                let mut d = Vec::new();
+                let part = group_cofacets(&pairs, &prev_mixed, (j, 4), run, &mut d);
+                assert_eq!(part.0, whole.0, "j {j}, run {run}");
+                assert_eq!(lists(&part.1), lists(&whole.1), "j {j}, run {run}");
+                assert_eq!(part.1.interior(), whole.1.interior(), "j {j}, run {run}");
+                assert_eq!(part.2, whole.2, "j {j}, run {run}");
+                assert_eq!(d, defects, "j {j}, run {run}");
+            }
+        }
     }
 
     #[test]
@@ -488,8 +694,12 @@ mod tests {
             })
             .collect();
         let cj = KeyCodec::new(3, 2, bits).unwrap();
-        let pairs = cofacet_pairs::<W>(&prev, codec, &cj).unwrap();
-        let count: u64 = prev.iter().map(|k| codec.decode(k).cofacet_count()).sum();
+        let pairs = cofacet_pairs::<W>(&prev, codec, &cj, &cofacet_counts(&prev, codec)).unwrap();
+        // Counted by listing them.
+        let mut count = 0u64;
+        for k in &prev {
+            codec.decode(k).for_each_cofacet(|_| count += 1);
+        }
         assert_eq!(pairs.len() as u64, count);
         let l = &levels[0];
         let peak = size_of_val(&pairs[..])
