@@ -212,17 +212,17 @@ impl<'a, const W: usize> Engine<'a, W> {
         keys.dedup();
         let (d, k) = (self.ctx.d, self.ctx.k);
         let mut lattice = vec![0i32; keys.len() * d];
-        for (v, key) in lattice.chunks_exact_mut(d).zip(keys.iter()) {
-            self.ctx.codec.decode_vertex(key, v);
-        }
+        lattice
+            .par_chunks_exact_mut(d)
+            .zip(keys.par_iter())
+            .with_min_len(CHUNK)
+            .for_each(|(v, key)| self.ctx.codec.decode_vertex(key, v));
         let mut vals = vec![0.0; keys.len() * k];
         self.ctx
             .oracle
             .eval_vertices(self.ctx.tri, &lattice, &mut vals)?;
         // Misses of the cache, deduplicated: all new.
-        for key in keys.iter() {
-            self.verts.insert_new(key)?;
-        }
+        self.verts.insert_new_batch(keys.as_flattened())?;
         self.values.extend_from_slice(&vals);
         self.stats.vertices += keys.len() as u64;
         self.stats.cpu_vertex_evaluations += keys.len() as u64;
@@ -380,6 +380,18 @@ impl<'a, const W: usize> Engine<'a, W> {
         let (d, n) = (self.ctx.d, self.ctx.k + 1);
         let start = self.s.len();
         let (mut rows, mut back) = (Vec::new(), Back::default());
+        // No point computed: the domain is everything.
+        let outside: Vec<bool> = if found.points.is_empty() {
+            Vec::new()
+        } else {
+            found
+                .points
+                .par_chunks_exact(d)
+                .with_min_len(256)
+                .map(|p| !self.ctx.domain.contains(p))
+                .collect()
+        };
+        let mut inside = Vec::with_capacity(found.keys.len());
         // A level's keys are distinct and in neither S nor the rim (see `step`).
         for (i, (key, row)) in found
             .keys
@@ -387,19 +399,17 @@ impl<'a, const W: usize> Engine<'a, W> {
             .zip(found.rows.chunks_exact(n))
             .enumerate()
         {
-            match found.points.get(i * d..(i + 1) * d) {
-                Some(p) if !self.ctx.domain.contains(p) => {
-                    self.rim.insert_new(key)?;
-                    self.rim_points.extend_from_slice(p);
-                }
-                // Inside, or no point computed: the domain is everything.
-                _ => {
-                    self.s.insert_new(key)?;
-                    rows.extend_from_slice(row);
-                    back.push_from(&found.back, i);
-                }
+            if outside.get(i) == Some(&true) {
+                self.rim.insert_new(key)?;
+                self.rim_points
+                    .extend_from_slice(&found.points[i * d..(i + 1) * d]);
+            } else {
+                inside.push(*key);
+                rows.extend_from_slice(row);
+                back.push_from(&found.back, i);
             }
         }
+        self.s.insert_new_batch(inside.as_flattened())?;
         Ok(Frontier {
             range: start..self.s.len(),
             rows,

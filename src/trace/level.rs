@@ -188,6 +188,15 @@ pub(crate) fn sort<T: Ord + Send>(v: &mut [T]) {
     }
 }
 
+/// Sorts a concatenation of sorted runs (merging them), in parallel when it pays.
+fn sort_runs<T: Ord + Send>(v: &mut [T]) {
+    if v.len() < PAR_SORT_MIN {
+        v.sort();
+    } else {
+        v.par_sort();
+    }
+}
+
 /// Per-thread work space for naming exits: the frontier simplex being read, and the rest.
 struct Namer<'e, 'a, const W: usize> {
     frontier: &'e Frontier,
@@ -486,7 +495,7 @@ impl<const W: usize> Engine<'_, W> {
             self.stats.pivot_fallbacks += named.fallbacks;
             self.stats.non_finite += named.non_finite;
             let mut cands = named.cands;
-            sort(&mut cands);
+            sort_runs(&mut cands);
             let new: Vec<&Candidate<W>> = firsts(&cands)
                 .filter(|c| !sliced || !taken.has(&c.key))
                 .collect();
@@ -530,6 +539,7 @@ impl<const W: usize> Engine<'_, W> {
             for i in r {
                 namer.all_cofacets(slice.start + i)?;
             }
+            namer.work.out.cands.sort_unstable();
             Ok(namer.work.out)
         });
         let mut named = Named::with_capacity(0, 0);
@@ -547,7 +557,8 @@ impl<const W: usize> Engine<'_, W> {
         let mut keys: Vec<Key<W>> = deferred.iter().map(|t| t.vertex).collect();
         self.add_vertices(&mut keys)?;
         let with_apex: Vec<(Deferred<W>, u32)> = deferred
-            .iter()
+            .par_iter()
+            .with_min_len(POINT_CHUNK)
             .map(|t| (*t, self.verts.find(&t.vertex).expect("just added") as u32))
             .collect();
         let starts: Vec<usize> = (0..with_apex.len())
@@ -561,6 +572,7 @@ impl<const W: usize> Engine<'_, W> {
                 let group = &with_apex[starts[s]..end];
                 namer.some_cofacets(group[0].0.from as usize, group)?;
             }
+            namer.work.out.cands.sort_unstable();
             Ok(namer.work.out)
         });
         named.extend(parts)

@@ -284,9 +284,14 @@ pub(super) fn sample_from<const W: usize>(
     let words = codec.words();
     let verts = engine.verts.into_words();
     let mut vertices = KeySet::new(words);
-    vertices.reserve(verts.len() / W);
-    for v in verts.chunks_exact(W) {
-        vertices.insert_new(&v[..words])?;
+    if words == W {
+        vertices.insert_new_batch(&verts)?;
+    } else {
+        let narrow: Vec<u64> = verts
+            .chunks_exact(W)
+            .flat_map(|v| v[..words].iter().copied())
+            .collect();
+        vertices.insert_new_batch(&narrow)?;
     }
     let mut keys = engine.s.into_words();
     keys.shrink_to_fit();

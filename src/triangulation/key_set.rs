@@ -2,6 +2,9 @@
 //! order in a flat arena, indexed by a hash table of u32 positions (about `8 * words + 5..10`
 //! bytes per key, no allocation per key).
 //!
+//! The table is split into [`SHARDS`] tables by bits of the hash, so that a batch of new
+//! keys is indexed by several threads at once ([`KeySet::insert_new_batch`]).
+//!
 //! The width is known at run time ([`KeySet<usize>`], the public default) or at compile time
 //! ([`KeySet<Words<W>>`], which the tracing loop uses: the comparisons and the hash of a key
 //! unroll). Both hash a key the same way, so one seed and one overflow guard serve both.
@@ -9,7 +12,9 @@
 use foldhash::fast::FixedState;
 use hashbrown::hash_table::Entry;
 use hashbrown::HashTable;
+use rayon::prelude::*;
 use std::hash::BuildHasher;
+use std::ops::Range;
 
 use crate::error::{Error, Result};
 
@@ -47,11 +52,23 @@ pub struct KeySet<N: Width = usize> {
     /// Most keys it may hold: 2^32, the positions its table stores (lowered in tests).
     max_keys: usize,
     arena: Vec<u64>,
-    table: HashTable<u32>,
+    /// Positions in the arena, in the table [`shard`] of their key's hash names.
+    tables: Vec<HashTable<u32>>,
     hasher: FixedState,
 }
 
 const SEED: u64 = 0x1503_e5a1;
+/// Tables a set is split into (a power of two).
+pub const SHARDS: usize = 16;
+/// Fewest keys a batch insertion indexes on several threads.
+const PAR_BATCH: usize = 128;
+
+/// The table of a key with hash `h`: bits the hash tables use for neither the bucket (low
+/// bits) nor the control byte (the top seven).
+#[inline]
+fn shard(h: u64) -> usize {
+    (h >> 48) as usize & (SHARDS - 1)
+}
 
 impl KeySet<usize> {
     /// An empty set of keys of `words` words.
@@ -80,7 +97,7 @@ impl<N: Width> KeySet<N> {
             width,
             max_keys: 1 << 32,
             arena: Vec::new(),
-            table: HashTable::new(),
+            tables: (0..SHARDS).map(|_| HashTable::new()).collect(),
             hasher: FixedState::with_seed(SEED),
         }
     }
@@ -115,7 +132,7 @@ impl<N: Width> KeySet<N> {
     pub fn find(&self, key: &[u64]) -> Option<usize> {
         let h = self.hasher.hash_one(key);
         let (arena, w) = (&self.arena, self.words());
-        self.table
+        self.tables[shard(h)]
             .find(h, |&i| &arena[i as usize * w..(i as usize + 1) * w] == key)
             .map(|&i| i as usize)
     }
@@ -131,11 +148,11 @@ impl<N: Width> KeySet<N> {
         let fits = self.position(i);
         let KeySet {
             arena,
-            table,
+            tables,
             hasher,
             ..
         } = self;
-        let entry = table.entry(
+        let entry = tables[shard(h)].entry(
             h,
             |&i| &arena[i as usize * w..(i as usize + 1) * w] == key,
             |&i| hasher.hash_one(&arena[i as usize * w..(i as usize + 1) * w]),
@@ -160,11 +177,50 @@ impl<N: Width> KeySet<N> {
         let pos = self.position(i)?;
         let h = self.hasher.hash_one(key);
         let (arena, w, hasher) = (&self.arena, self.words(), &self.hasher);
-        self.table.insert_unique(h, pos, |&j| {
+        self.tables[shard(h)].insert_unique(h, pos, |&j| {
             hasher.hash_one(&arena[j as usize * w..(j as usize + 1) * w])
         });
         self.arena.extend_from_slice(key);
         Ok(i)
+    }
+
+    /// Inserts the keys `keys` (one after another, [`KeySet::words`] each), distinct and
+    /// known not to be in the set, in order; returns their indices. A large batch is indexed
+    /// by several threads, one table each. An error, and the set unchanged, when they would
+    /// need an index past u32.
+    pub fn insert_new_batch(&mut self, keys: &[u64]) -> Result<Range<usize>> {
+        let w = self.words();
+        debug_assert_eq!(keys.len() % w, 0);
+        let (start, count) = (self.len(), keys.len() / w);
+        if count == 0 {
+            return Ok(start..start);
+        }
+        self.position(start + count - 1)?;
+        if count < PAR_BATCH {
+            for key in keys.chunks_exact(w) {
+                self.insert_new(key)?;
+            }
+            return Ok(start..start + count);
+        }
+        let hasher = &self.hasher;
+        let hashes: Vec<u64> = keys
+            .par_chunks_exact(w)
+            .with_min_len(PAR_BATCH)
+            .map(|k| hasher.hash_one(k))
+            .collect();
+        self.arena.extend_from_slice(keys);
+        let arena = &self.arena;
+        self.tables
+            .par_iter_mut()
+            .enumerate()
+            .for_each(|(t, table)| {
+                for (i, &h) in hashes.iter().enumerate().filter(|(_, &h)| shard(h) == t) {
+                    table.insert_unique(h, (start + i) as u32, |&j| {
+                        hasher.hash_one(&arena[j as usize * w..(j as usize + 1) * w])
+                    });
+                }
+            });
+        Ok(start..start + count)
     }
 
     /// The table position of the key at index `i`, or the overflow error.
@@ -181,9 +237,13 @@ impl<N: Width> KeySet<N> {
         let w = self.words();
         self.arena.reserve(additional * w);
         let (arena, hasher) = (&self.arena, &self.hasher);
-        self.table.reserve(additional, |&i| {
-            hasher.hash_one(&arena[i as usize * w..(i as usize + 1) * w])
-        });
+        // Keys spread evenly over the tables, give or take a few.
+        let each = additional / SHARDS + additional.div_ceil(SHARDS).isqrt() * 4;
+        for table in &mut self.tables {
+            table.reserve(each, |&i| {
+                hasher.hash_one(&arena[i as usize * w..(i as usize + 1) * w])
+            });
+        }
     }
 
     /// Keys in insertion order.
@@ -193,7 +253,12 @@ impl<N: Width> KeySet<N> {
 
     /// Bytes held by the arena and the table.
     pub fn memory_bytes(&self) -> usize {
-        self.arena.capacity() * 8 + self.table.allocation_size()
+        self.arena.capacity() * 8
+            + self
+                .tables
+                .iter()
+                .map(HashTable::allocation_size)
+                .sum::<usize>()
     }
 
     /// Bytes that inserting `extra` more keys may allocate on top of
@@ -205,12 +270,13 @@ impl<N: Width> KeySet<N> {
         if len * w > self.arena.capacity() {
             grow += (len * w).max(2 * self.arena.capacity()) * 8;
         }
-        if len > self.table.capacity() {
-            let ratio = len
-                .div_ceil(self.table.capacity().max(1))
-                .next_power_of_two();
+        // The tables grow one by one; counted as if they were one (more than they need).
+        let capacity: usize = self.tables.iter().map(HashTable::capacity).sum();
+        if len > capacity {
+            let ratio = len.div_ceil(capacity.max(1)).next_power_of_two();
+            let size: usize = self.tables.iter().map(HashTable::allocation_size).sum();
             // A bucket: its u32 and a control byte, at 7/8 load.
-            grow += (self.table.allocation_size().max(len * 5 * 8 / 7)) * ratio.max(2);
+            grow += (size.max(len * 5 * 8 / 7)) * ratio.max(2);
         }
         grow
     }
@@ -243,6 +309,51 @@ mod tests {
         assert_eq!(set.len(), 3);
         assert_eq!(set.find(&[9, 9]), None);
         assert_eq!(set.find(&[2, 7]), Some(2));
+    }
+
+    #[test]
+    fn a_batch_is_indexed_as_one_key_at_a_time() {
+        for count in [0, 1, PAR_BATCH - 1, PAR_BATCH, 5000] {
+            let keys: Vec<u64> = (0..count as u64)
+                .flat_map(|i| [i * 7919 % 100_003, i])
+                .collect();
+            let mut one = KeySet::new(2);
+            let mut batch = KeySet::new(2);
+            one.insert(&[u64::MAX, 0]).unwrap();
+            batch.insert(&[u64::MAX, 0]).unwrap();
+            for key in keys.chunks_exact(2) {
+                one.insert_new(key).unwrap();
+            }
+            assert_eq!(batch.insert_new_batch(&keys).unwrap(), 1..count + 1);
+            assert_eq!(batch.len(), one.len());
+            for (i, key) in keys.chunks_exact(2).enumerate() {
+                assert_eq!(batch.find(key), Some(i + 1), "{count} keys");
+                assert_eq!(batch.get(i + 1), key);
+            }
+            assert_eq!(batch.find(&[u64::MAX, 0]), Some(0));
+            assert_eq!(batch.find(&[3, u64::MAX]), None);
+            // Every table holds keys, and only its own.
+            if count >= 5000 {
+                for (t, table) in batch.tables.iter().enumerate() {
+                    assert!(
+                        table.len() > count / SHARDS / 2,
+                        "table {t}: {}",
+                        table.len()
+                    );
+                    for &j in table {
+                        assert_eq!(shard(batch.hasher.hash_one(batch.get(j as usize))), t);
+                    }
+                }
+            }
+        }
+        // Past the last index: refused, the set unchanged.
+        let mut set = KeySet::new(1);
+        set.max_keys = PAR_BATCH + 1;
+        set.insert(&[u64::MAX]).unwrap();
+        let keys: Vec<u64> = (0..PAR_BATCH as u64 + 1).collect();
+        assert!(set.insert_new_batch(&keys).is_err());
+        assert_eq!((set.len(), set.find(&[0])), (1, None));
+        assert_eq!(set.insert_new_batch(&keys[1..]).unwrap(), 1..PAR_BATCH + 1);
     }
 
     #[test]
