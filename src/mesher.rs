@@ -515,8 +515,10 @@ impl Mesher {
     }
 }
 
-/// Most worker threads per core a run may ask for.
-const MAX_THREADS_PER_CORE: usize = 4;
+/// Most worker threads per core a run may ask for: the work is all on the CPU, so a thread
+/// beyond the cores only takes turns with another (eight threads on two cores ran a trace
+/// four times slower than one).
+const MAX_THREADS_PER_CORE: usize = 1;
 /// Most worker threads in all.
 const MAX_THREADS: usize = 1024;
 
@@ -531,7 +533,7 @@ pub fn max_threads() -> usize {
 pub fn too_many_threads(cap: usize) -> String {
     format!(
         "more than this machine can use: running {cap} (at most {MAX_THREADS_PER_CORE} per \
-         core, and at most {MAX_THREADS})"
+         core, and at most {MAX_THREADS}; more threads than cores only slow a run down)"
     )
 }
 

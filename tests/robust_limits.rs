@@ -181,6 +181,21 @@ fn threads_are_capped() {
         let t = r["threads"].as_u64().unwrap();
         assert!((1..=1024).contains(&t), "{t} threads");
     }
+    // One more thread than cores runs one per core: a thread beyond them only slows the
+    // run down.
+    let cores = std::thread::available_parallelism().unwrap().get();
+    let (o, r, _) = trace(
+        "threads_cores",
+        None,
+        &["--preset", "circle", "--threads", &(cores + 1).to_string()],
+    );
+    assert!(o.status.success(), "{}", text(&o));
+    assert!(
+        text(&o).contains(&format!("running {cores} ")),
+        "{}",
+        text(&o)
+    );
+    assert_eq!(r["threads"].as_u64(), Some(cores as u64));
 }
 
 #[test]
