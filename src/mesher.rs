@@ -454,6 +454,11 @@ impl Mesher {
             trace::trace(f, &tri, oracle, &opts)?
         };
         let peak = memory::peak_bytes().saturating_sub(base) as u64;
+        let mut checks = sample.check_crossings(f);
+        if exhaustive {
+            // A scan finds every branch.
+            checks.singular.clear();
+        }
         #[cfg(feature = "gpu")]
         let backend = match &gpu {
             Some(o) => BackendInfo::of_gpu(o),
@@ -469,8 +474,9 @@ impl Mesher {
             threads: rayon::current_num_threads(),
             peak_memory_bytes: peak,
             max_memory_bytes: self.max_memory,
-            suspect_crossings: sample.suspect_crossings(f),
+            suspect_crossings: checks.suspect,
             singular_seeds,
+            singular_crossings: checks.singular,
         };
         Ok(Manifold {
             function: self.function.clone(),

@@ -147,6 +147,10 @@ pub struct Report {
     /// Seeds (from 1) where the Jacobian of f is rank-deficient: the trace follows at most
     /// one branch from each.
     pub singular_seeds: Vec<usize>,
+    /// Crossings of a trace near a point where the Jacobian of f is rank-deficient (see
+    /// [`Sample::check_crossings`]; empty for a scan): branches of M may cross there, and
+    /// a trace follows only those it reaches.
+    pub singular_crossings: Vec<Vec<f64>>,
     /// False when the run stopped early (Ctrl-C, memory limit, no box for an unbounded M),
     /// found nothing, or a later phase failed.
     pub complete: bool,
@@ -242,6 +246,8 @@ pub struct RunInfo {
     pub suspect_crossings: usize,
     /// Seeds (from 1) at a singular point of f.
     pub singular_seeds: Vec<usize>,
+    /// [`crate::trace::CrossingChecks::singular`] of a trace.
+    pub singular_crossings: Vec<Vec<f64>>,
 }
 
 impl Report {
@@ -291,6 +297,7 @@ impl Report {
             seed_points: st.seed_points,
             suspect_crossings: run.suspect_crossings,
             singular_seeds: run.singular_seeds,
+            singular_crossings: run.singular_crossings,
             complete: st.stopped.is_none(),
             stopped: st.stopped.as_ref().map(ToString::to_string),
             signal: None,

@@ -327,6 +327,68 @@ fn singular_seeds_are_warned_about() {
 }
 
 #[test]
+fn a_trace_near_crossing_branches_says_so_and_how_to_get_them_all() {
+    // Two lines crossing at the origin: the trace from a point of one follows the piecewise-
+    // linear branch it is on, which turns at the origin; the scan finds both.
+    let spec =
+        "ambient_dim = 3\nequations = [\"x1*x2\", \"x3\"]\nbox = [[-1, 1], [-1, 1], [-1, 1]]\n\
+                [triangulation]\nedge = 0.1\n";
+    let (o, r, _) = trace(
+        "crossing",
+        Some(spec),
+        &["--seed", "0.5,0,0", "--no-complex"],
+    );
+    let t = text(&o);
+    assert!(o.status.success(), "{t}");
+    assert!(
+        t.contains("rank-deficient") && t.contains("--exhaustive"),
+        "{t}"
+    );
+    let near = r["singular_crossings"].as_array().unwrap();
+    assert!(!near.is_empty(), "{r}");
+    for x in near {
+        let x: Vec<f64> = x
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|v| v.as_f64().unwrap())
+            .collect();
+        let dist = x.iter().map(|v| v * v).sum::<f64>().sqrt();
+        assert!(dist < 0.2, "{x:?} is not within two edges of the crossing");
+    }
+    let traced = r["simplex_count"].as_u64().unwrap();
+    let (o, r, _) = trace(
+        "crossing_scan",
+        Some(spec),
+        &["--exhaustive", "--no-complex"],
+    );
+    assert!(!text(&o).contains("rank-deficient"), "{}", text(&o));
+    assert_eq!(r["singular_crossings"].as_array().unwrap().len(), 0);
+    assert!(r["simplex_count"].as_u64().unwrap() > traced, "{r}");
+    // Smooth curves and surfaces, steep or flat in places: no warning.
+    for (i, (eq, seed)) in [
+        ("x1*x2 - 0.01\", \"x3", "0.5,0.02,0"),
+        ("x1^2 + x2^2 + x3^2 - 1", "1,0,0"),
+        ("x3 - x1^3", "0,0,0"),
+    ]
+    .iter()
+    .enumerate()
+    {
+        let spec = format!(
+            "ambient_dim = 3\nequations = [\"{eq}\"]\nbox = [[-1, 1], [-1, 1], [-1, 1]]\n\
+             [triangulation]\nedge = 0.1\n"
+        );
+        let (o, r, _) = trace(
+            &format!("smooth{i}"),
+            Some(&spec),
+            &["--seed", seed, "--no-complex"],
+        );
+        assert!(!text(&o).contains("rank-deficient"), "{eq}: {}", text(&o));
+        assert_eq!(r["singular_crossings"].as_array().unwrap().len(), 0, "{eq}");
+    }
+}
+
+#[test]
 fn messages_name_what_to_change() {
     // A non-finite seed names the seed.
     let dir = scratch("messages");

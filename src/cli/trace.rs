@@ -457,7 +457,22 @@ fn run_in_pool(p: &Problem, args: &TraceArgs, plan: &Plan, threads: usize) -> Re
     };
     let trace_peak = memory::peak_bytes().saturating_sub(base);
     bar.finish_and_clear();
-    let suspect = sample.suspect_crossings(sys);
+    let checks = sample.check_crossings(sys);
+    let suspect = checks.suspect;
+    let singular_crossings = if args.exhaustive {
+        // A scan finds every branch.
+        Vec::new()
+    } else {
+        checks.singular
+    };
+    if let Some(x) = singular_crossings.first().filter(|_| !args.quiet) {
+        eprintln!(
+            "warning: the trace passed near a point where the Jacobian of f is \
+             rank-deficient, about {x:?} (branches of M may cross there, or a cusp): it \
+             follows only the branches it reaches from its seeds; --exhaustive finds all of \
+             them in the box"
+        );
+    }
     if suspect > 0 {
         eprintln!(
             "warning: at {suspect} of {} crossings |f| is more than half the spread of its \
@@ -607,6 +622,7 @@ fn run_in_pool(p: &Problem, args: &TraceArgs, plan: &Plan, threads: usize) -> Re
             max_memory_bytes: limit,
             suspect_crossings: suspect,
             singular_seeds,
+            singular_crossings,
         };
         let mut report = Report::new(&sample, run);
         report.error = failure

@@ -15,6 +15,6 @@ pub use parser::{parse_expr, parse_system, ErrorKind, ParseError, Scope};
 pub use presets::{preset, preset_names, preset_spec, PresetInfo, PRESETS};
 pub use spec::{Problem, Spec, TriangulationSpec};
 pub use system::{
-    is_singular_at, newton_project, zero_equation_at, ClosureFunction, EquationSystem,
+    is_singular_at, newton_project, rank_ratio, zero_equation_at, ClosureFunction, EquationSystem,
     ImplicitFunction,
 };

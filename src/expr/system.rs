@@ -455,47 +455,66 @@ fn scaled_norm(v: &[f64]) -> f64 {
 }
 
 /// Whether the Jacobian of `f` is rank-deficient at `x`: some row, made orthogonal to the
-/// rows before it, is shorter than 1e-6 times f's own slope about `x`: the median of the
-/// largest Jacobian rows at the 2 d points `x` +- `h` e_i (a median, so that a steep f, whose
-/// slope a step away is many times its slope at `x`, is not taken for a singular one).
+/// rows before it, is shorter than 1e-6 times that equation's own slope about `x`: the
+/// median of its Jacobian row's norm at the 2 d points `x` +- `h` e_i (a median, so that a
+/// steep f, whose slope a step away is many times its slope at `x`, is not taken for a
+/// singular one; per equation, so that equations of different scales are not either).
 /// Tracing from such a point (a crossing of branches, a cusp) follows one branch at most. A
 /// Jacobian that is not finite at `x` tells nothing: false.
 pub fn is_singular_at(f: &dyn ImplicitFunction, x: &[f64], h: f64) -> bool {
+    rank_ratio(f, x, h).is_some_and(|r| r <= 1e-6)
+}
+
+/// How close the Jacobian of `f` at `x` is to losing rank, against f's slope about `x`:
+/// the least, over the equations, of its row made orthogonal to the rows before it over the
+/// equation's slope that [`is_singular_at`] takes (the median of the row's norm at `x` +- `h`
+/// e_i).
+/// Near a point where branches cross (or a cusp) at distance r, with `h` several times r,
+/// it is about r / h; on a smooth M it is about 1. `None` where the Jacobian at `x` is not
+/// finite.
+pub fn rank_ratio(f: &dyn ImplicitFunction, x: &[f64], h: f64) -> Option<f64> {
     let (d, k) = (f.ambient_dim(), f.codim());
     let mut j = vec![0.0; k * d];
-    let row_norm = |j: &[f64]| j.chunks_exact(d).map(scaled_norm).fold(0.0, f64::max);
-    let mut around = Vec::with_capacity(2 * d);
+    // Each row's norm at the 2 d points about x, row by row.
+    let mut around = vec![Vec::with_capacity(2 * d); k];
     let mut p = x.to_vec();
     for c in 0..d {
         for step in [h, -h] {
             p[c] = x[c] + step;
             f.jacobian(&p, &mut j);
-            let n = row_norm(&j);
-            if !n.is_nan() {
-                around.push(n);
+            for (a, row) in around.iter_mut().zip(j.chunks_exact(d)) {
+                let n = scaled_norm(row);
+                if !n.is_nan() {
+                    a.push(n);
+                }
             }
         }
         p[c] = x[c];
     }
     f.jacobian(x, &mut j);
     if j.iter().any(|v| !v.is_finite()) {
-        return false;
+        return None;
     }
-    around.sort_by(f64::total_cmp);
-    let at_x = row_norm(&j);
-    let scale = match around.get(around.len() / 2) {
-        Some(&m) if m.is_finite() => m.max(at_x),
-        _ => at_x,
-    };
-    if scale == 0.0 {
-        return true;
+    // Each row's slope: its median about x, or its norm at x if larger. Each row is then
+    // scaled by a power of two near 1 / slope (exact; the rows' span is unchanged), so that
+    // their products neither overflow nor underflow where it matters.
+    let mut slopes = Vec::with_capacity(k);
+    for (a, row) in around.iter_mut().zip(j.chunks_exact_mut(d)) {
+        a.sort_by(f64::total_cmp);
+        let at_x = scaled_norm(row);
+        let slope = match a.get(a.len() / 2) {
+            Some(&m) if m.is_finite() => m.max(at_x),
+            _ => at_x,
+        };
+        if slope == 0.0 {
+            return Some(0.0);
+        }
+        let s = pow2_inverse(slope);
+        row.iter_mut().for_each(|v| *v *= s);
+        slopes.push(slope * s);
     }
-    // A power of two near 1 / scale (exact): the rows' products then neither overflow nor
-    // underflow where it matters.
-    let s = pow2_inverse(scale);
-    j.iter_mut().for_each(|v| *v *= s);
-    let scale = scale * s;
     // Modified Gram-Schmidt over the rows.
+    let mut ratio = f64::INFINITY;
     for r in 0..k {
         for q in 0..r {
             let (done, rest) = j.split_at_mut(r * d);
@@ -506,11 +525,9 @@ pub fn is_singular_at(f: &dyn ImplicitFunction, x: &[f64], h: f64) -> bool {
                 row.iter_mut().zip(qrow).for_each(|(b, a)| *b -= t * a);
             }
         }
-        if scaled_norm(&j[r * d..(r + 1) * d]) <= 1e-6 * scale {
-            return true;
-        }
+        ratio = ratio.min(scaled_norm(&j[r * d..(r + 1) * d]) / slopes[r]);
     }
-    false
+    Some(ratio)
 }
 
 /// The first equation (0-based) that is exactly 0 at every one of `points` (n rows of d),

@@ -37,7 +37,7 @@ use serde::Serialize;
 pub use oracle::{CpuOracle, Decisions, Oracle};
 pub use region::{box_slack, coord_bits, in_box, in_box_closed, lattice_bounds, Domain};
 use sample::sample_from;
-pub use sample::Sample;
+pub use sample::{CrossingChecks, Sample, MAX_SINGULAR};
 pub use scan::{exhaustive, scan_grid, ScanGrid, MAX_SCAN_DIM};
 pub use seeds::SEED_TOLERANCE;
 

@@ -161,6 +161,18 @@ impl Sample {
     /// and S then holds a sheet where f changes sign without a zero. `f` is the function the
     /// sample was traced for.
     pub fn suspect_crossings(&self, f: &dyn ImplicitFunction) -> usize {
+        self.check_crossings(f).suspect
+    }
+
+    /// [`Sample::suspect_crossings`], and the crossings where f's Jacobian is
+    /// rank-deficient ([`CrossingChecks::singular`]), in one pass over S.
+    ///
+    /// A crossing where some component's spread is under 1/16 of its median is a candidate
+    /// (f_c's gradient is small there, or the simplex lies almost within M); the candidates,
+    /// smallest ratio first and at most 256 + |S| / 16 of them, are kept where
+    /// [`rank_ratio`](crate::expr::rank_ratio) at their point, against f's slope 8 edges
+    /// about it, is under 1/8: within about an edge of a point where branches of M cross.
+    pub fn check_crossings(&self, f: &dyn ImplicitFunction) -> CrossingChecks {
         const CHUNK: usize = 256;
         let (d, k) = (self.ambient_dim(), self.codim());
         let n = self.len();
@@ -226,14 +238,50 @@ impl Sample {
                 *v.select_nth_unstable_by(mid, f64::total_cmp).1
             })
             .collect();
-        marked
+        let suspect = marked
             .chunks_exact(k)
             .filter(|m| {
                 m.iter()
                     .zip(&medians)
                     .any(|(x, med)| x.is_sign_negative() && -x >= *med)
             })
-            .count()
+            .count();
+        // Candidates for a singular point: (smallest spread / median, crossing).
+        let mut low: Vec<(f64, usize)> = marked
+            .par_chunks_exact(k)
+            .enumerate()
+            .filter_map(|(i, m)| {
+                let r = m
+                    .iter()
+                    .zip(&medians)
+                    .filter(|(x, med)| !x.is_nan() && !x.is_sign_negative() && **med > 0.0)
+                    .map(|(x, med)| x / med)
+                    .fold(f64::INFINITY, f64::min);
+                (r < 1.0 / 16.0).then_some((r, i))
+            })
+            .collect();
+        low.par_sort_unstable_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+        low.truncate(256 + n / 16);
+        let edge = self.tri.edge();
+        let singular: Vec<Vec<f64>> = low
+            .par_iter()
+            .map_init(
+                || self.point_work(),
+                |w, &(_, i)| {
+                    let mut p = vec![0.0; d];
+                    self.point_into(i, w, &mut p);
+                    let near = p.iter().all(|v| v.is_finite())
+                        && on_m_within(f, &p, edge)
+                        && crate::expr::rank_ratio(f, &p, 2.0 * edge).is_some_and(|r| r < 0.25);
+                    near.then_some(p)
+                },
+            )
+            .flatten()
+            .collect();
+        CrossingChecks {
+            suspect,
+            singular: singular.into_iter().take(MAX_SINGULAR).collect(),
+        }
     }
 
     /// (simplex, point) pairs in order.
@@ -271,6 +319,34 @@ impl Sample {
             + self.vertices.memory_bytes()
             + (self.values.capacity() + self.rim_points.capacity()) * 8
     }
+}
+
+/// Whether a Newton step from `p` moves it by at most `h` for every equation (|f_c| at most
+/// `h` times the norm of its gradient): `p` lies on M up to about `h`, and is not the
+/// crossing of a simplex too coarse for a steep f, far from M.
+fn on_m_within(f: &dyn ImplicitFunction, p: &[f64], h: f64) -> bool {
+    let (d, k) = (f.ambient_dim(), f.codim());
+    let (mut v, mut j) = (vec![0.0; k], vec![0.0; k * d]);
+    f.eval_batch(p, &mut v);
+    f.jacobian(p, &mut j);
+    v.iter().zip(j.chunks_exact(d)).all(|(fc, row)| {
+        let g = row.iter().fold(0.0f64, |a, &x| a.hypot(x));
+        fc.is_finite() && fc.abs() <= h * g
+    })
+}
+
+/// Most singular crossings [`Sample::check_crossings`] returns.
+pub const MAX_SINGULAR: usize = 8;
+
+/// What [`Sample::check_crossings`] finds.
+#[derive(Clone, Debug, Default)]
+pub struct CrossingChecks {
+    /// [`Sample::suspect_crossings`].
+    pub suspect: usize,
+    /// Crossing points where f's Jacobian is rank-deficient (at most [`MAX_SINGULAR`], the
+    /// most degenerate first): branches of M may cross there, and a trace follows only the
+    /// ones it reaches.
+    pub singular: Vec<Vec<f64>>,
 }
 
 /// The sample of a finished trace or scan: its keys, vertices (re-keyed at the codec's width)
