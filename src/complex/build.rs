@@ -108,10 +108,9 @@ fn raw_levels<const W: usize>(
         let mut pairs = cofacet_pairs::<W>(&prev, &prev_codec, &cj, &counts)?;
         pairs.par_sort_unstable();
         let run = run_len(pairs.len());
-        let (keys, mut cells, mixed) =
-            group_cofacets(&pairs, &prev_mixed, (j, n), run, &mut defects);
+        // All interior: clipping adds the boundary cells.
+        let (keys, cells, mixed) = group_cofacets(&pairs, &prev_mixed, (j, n), run, &mut defects);
         drop(pairs);
-        cells.interior = cells.len();
         let kept = if keep_keys {
             keys.iter().flatten().copied().collect()
         } else {
@@ -384,12 +383,7 @@ fn clip(s: &Sample, domain: &Domain, mut raw: Vec<RawLevel>, d: usize, m: usize)
     for j in 1..=m {
         if !raw[j - 1].mixed.contains(&true) {
             // No cell here meets the boundary, so none above does: the level as built.
-            let mut out = std::mem::take(&mut raw[j - 1].cells);
-            if out.offsets.is_empty() {
-                out.offsets.push(0);
-            }
-            out.interior = out.len();
-            levels.push(out);
+            levels.push(std::mem::take(&mut raw[j - 1].cells));
             continue;
         }
         let level = &raw[j - 1];

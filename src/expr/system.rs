@@ -435,14 +435,31 @@ pub fn newton_project(f: &dyn ImplicitFunction, x0: &[f64], tol: f64) -> Result<
 /// Whether every equation's first-order distance |f_r(x)| / |grad f_r(x)| to its zero set is
 /// at most `tol`: |f| <= tol for an f whose scale is far from 1 (1e300 f, 1e-300 f).
 fn within_distance(f: &dyn ImplicitFunction, x: &[f64], tol: f64) -> bool {
+    values_and_slopes(f, x)
+        .iter()
+        .all(|&(v, g)| g > 0.0 && g.is_finite() && v.is_finite() && v.abs() <= tol * g)
+}
+
+/// Whether a Newton step from `x` moves it by at most `h` for every equation: |f_r(x)| is
+/// finite and at most `h` times the norm of its gradient (a zero gradient where f_r is 0
+/// too, as at a crossing of branches, passes). Unlike [`within_distance`], a point where an
+/// equation is flat passes: it serves to tell a point near M from the crossing of a simplex
+/// too coarse for a steep f, far from M.
+pub(crate) fn newton_step_within(f: &dyn ImplicitFunction, x: &[f64], h: f64) -> bool {
+    values_and_slopes(f, x)
+        .iter()
+        .all(|&(v, g)| v.is_finite() && v.abs() <= h * g)
+}
+
+/// Each equation's value at `x` and the norm of its gradient there.
+fn values_and_slopes(f: &dyn ImplicitFunction, x: &[f64]) -> Vec<(f64, f64)> {
     let (d, k) = (f.ambient_dim(), f.codim());
     let (mut fx, mut j) = (vec![0.0; k], vec![0.0; k * d]);
     f.eval_batch(x, &mut fx);
     f.jacobian(x, &mut j);
-    (0..k).all(|r| {
-        let g = scaled_norm(&j[r * d..(r + 1) * d]);
-        g > 0.0 && g.is_finite() && fx[r].is_finite() && fx[r].abs() <= tol * g
-    })
+    fx.into_iter()
+        .zip(j.chunks_exact(d).map(scaled_norm))
+        .collect()
 }
 
 /// The Euclidean norm of `v`, with no overflow or underflow on the way.

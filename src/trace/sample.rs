@@ -169,9 +169,10 @@ impl Sample {
     ///
     /// A crossing where some component's spread is under 1/16 of its median is a candidate
     /// (f_c's gradient is small there, or the simplex lies almost within M); the candidates,
-    /// smallest ratio first and at most 256 + |S| / 16 of them, are kept where
-    /// [`rank_ratio`](crate::expr::rank_ratio) at their point, against f's slope 8 edges
-    /// about it, is under 1/8: within about an edge of a point where branches of M cross.
+    /// smallest ratio first and at most 256 + |S| / 16 of them, are kept where a Newton step
+    /// from their point moves it less than an edge and [`rank_ratio`](crate::expr::rank_ratio)
+    /// there, against f's slope 2 edges about it, is under 1/4: within about an edge of a
+    /// point where branches of M cross.
     pub fn check_crossings(&self, f: &dyn ImplicitFunction) -> CrossingChecks {
         const CHUNK: usize = 256;
         let (d, k) = (self.ambient_dim(), self.codim());
@@ -271,7 +272,7 @@ impl Sample {
                     let mut p = vec![0.0; d];
                     self.point_into(i, w, &mut p);
                     let near = p.iter().all(|v| v.is_finite())
-                        && on_m_within(f, &p, edge)
+                        && crate::expr::system::newton_step_within(f, &p, edge)
                         && crate::expr::rank_ratio(f, &p, 2.0 * edge).is_some_and(|r| r < 0.25);
                     near.then_some(p)
                 },
@@ -319,20 +320,6 @@ impl Sample {
             + self.vertices.memory_bytes()
             + (self.values.capacity() + self.rim_points.capacity()) * 8
     }
-}
-
-/// Whether a Newton step from `p` moves it by at most `h` for every equation (|f_c| at most
-/// `h` times the norm of its gradient): `p` lies on M up to about `h`, and is not the
-/// crossing of a simplex too coarse for a steep f, far from M.
-fn on_m_within(f: &dyn ImplicitFunction, p: &[f64], h: f64) -> bool {
-    let (d, k) = (f.ambient_dim(), f.codim());
-    let (mut v, mut j) = (vec![0.0; k], vec![0.0; k * d]);
-    f.eval_batch(p, &mut v);
-    f.jacobian(p, &mut j);
-    v.iter().zip(j.chunks_exact(d)).all(|(fc, row)| {
-        let g = row.iter().fold(0.0f64, |a, &x| a.hypot(x));
-        fc.is_finite() && fc.abs() <= h * g
-    })
 }
 
 /// Most singular crossings [`Sample::check_crossings`] returns.
