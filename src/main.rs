@@ -6,9 +6,9 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
+use cli::args::TraceArgs;
 use cli::bench::BenchArgs;
 use cli::text::say;
-use cli::trace::TraceArgs;
 use isomesh::expr::PRESETS;
 use isomesh::memory::CountingAlloc;
 

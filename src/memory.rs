@@ -71,6 +71,23 @@ pub fn in_use(estimate: usize) -> u64 {
     }
 }
 
+/// Fails when `extra` more heap bytes, for `what`, would pass `limit`.
+pub fn check_headroom(what: &str, extra: usize, limit: u64) -> crate::Result<()> {
+    let live = in_use(0);
+    let need = live.saturating_add(extra as u64);
+    if need > limit {
+        let mib = |b: u64| b as f64 / (1u64 << 20) as f64;
+        return Err(crate::Error::Trace(format!(
+            "{what} needs about {:.1} MiB on top of {:.1} MiB in use, over the memory limit of \
+             {:.1} MiB (raise --max-memory, or use a larger edge)",
+            mib(extra as u64),
+            mib(live),
+            mib(limit)
+        )));
+    }
+    Ok(())
+}
+
 thread_local! {
     /// The heap limit that parsing and compiling on this thread check (see [`within`]).
     static LIMIT: Cell<u64> = const { Cell::new(u64::MAX) };

@@ -227,7 +227,7 @@ impl ComplexReport {
 
 /// What a report says of a run besides its sample.
 #[derive(Clone, Debug)]
-pub struct RunInfo {
+pub(crate) struct RunInfo {
     /// The problem's name.
     pub name: String,
     /// Whether it was an exhaustive scan.
@@ -252,7 +252,7 @@ pub struct RunInfo {
 
 impl Report {
     /// The report of `sample`, without the complex's keys.
-    pub fn new(sample: &Sample, run: RunInfo) -> Self {
+    pub(crate) fn new(sample: &Sample, run: RunInfo) -> Self {
         let st = &sample.stats;
         let tri = sample.triangulation();
         let (d, k) = (sample.ambient_dim(), sample.codim());

@@ -167,18 +167,6 @@ impl Problem {
             }
         };
         if let Some(t) = threads {
-            let cap = isomesh::mesher::max_threads();
-            if t > cap {
-                let msg = format!("threads={t}: {}", isomesh::mesher::too_many_threads(cap));
-                Python::attach(|py| {
-                    PyErr::warn(
-                        py,
-                        &py.get_type::<PyRuntimeWarning>(),
-                        &std::ffi::CString::new(msg).unwrap_or_default(),
-                        1,
-                    )
-                })?;
-            }
             m = m.threads(t);
         }
         if let Some(bytes) = max_memory {
@@ -219,18 +207,16 @@ impl Problem {
             }
         })?;
         let calls = run.callable.as_ref().map(|c| c.stats());
+        for w in manifold.warnings() {
+            warn(py, &w.to_string())?;
+        }
         if !manifold.complete() {
             let msg = format!(
                 "{}; the {} simplices found so far are returned with complete = False",
                 manifold.report().stopped.unwrap_or_default(),
                 manifold.len()
             );
-            PyErr::warn(
-                py,
-                &py.get_type::<PyRuntimeWarning>(),
-                &std::ffi::CString::new(msg).unwrap_or_default(),
-                1,
-            )?;
+            warn(py, &msg)?;
         }
         Ok(Sample::new(
             manifold,
@@ -239,6 +225,16 @@ impl Problem {
             calls,
         ))
     }
+}
+
+/// Raises `msg` as a RuntimeWarning.
+fn warn(py: Python<'_>, msg: &str) -> PyResult<()> {
+    PyErr::warn(
+        py,
+        &py.get_type::<PyRuntimeWarning>(),
+        &std::ffi::CString::new(msg).unwrap_or_default(),
+        1,
+    )
 }
 
 /// What one trace or scan owns, so that runs at once on one problem (from Python threads)

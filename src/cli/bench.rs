@@ -19,7 +19,8 @@ use isomesh::trace::{CpuOracle, Oracle, TraceStats};
 use isomesh::{Error, Result};
 use serde_json::{json, Value};
 
-use super::trace::Backend;
+use super::args::backend_parser;
+use isomesh::Backend;
 
 /// Which whole traces to run.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
@@ -61,7 +62,7 @@ pub struct BenchArgs {
     pub grid: Vec<u32>,
     /// cpu: the CPU only; gpu: a GPU is required; auto: the best adapter if any (software
     /// ones too, marked as such).
-    #[arg(long, value_enum, default_value = "auto")]
+    #[arg(long, value_parser = backend_parser(), default_value = "auto")]
     pub backend: Backend,
     /// Worker threads for the CPU (default: all cores).
     #[arg(long)]

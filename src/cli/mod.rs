@@ -1,7 +1,7 @@
 //! The command line's pieces: loading a problem, `check`, `trace`, `bench`.
 
+pub mod args;
 pub mod bench;
-mod checks;
 mod outputs;
 pub mod signals;
 pub mod text;

@@ -2,85 +2,49 @@
 //! format, the projection, and the paths checked (regular files only, no output the same file
 //! as another or as the input spec).
 
-use std::path::{Path, PathBuf};
-
-use isomesh::export::safe::{check_target, FileId};
-use isomesh::export::{OutputFormat as Output, Projection, SampleFormat};
+use isomesh::export::safe::check_target;
+use isomesh::export::{OutputFormat as Output, SampleFormat};
 use isomesh::expr::{ImplicitFunction, Problem};
-use isomesh::{Error, Result};
+use isomesh::mesher::{OutputPlan, Target};
+use isomesh::{Backend, Error, Result};
 
+use super::args::{TraceArgs, DEFAULT_PNG_SIZE};
 use super::text::shown;
-use super::trace::{Backend, TraceArgs};
 
-/// `--report -`: the JSON report goes to standard output.
-pub(super) fn report_to_stdout(args: &TraceArgs) -> bool {
-    args.report.as_ref().is_some_and(|p| p.as_os_str() == "-")
-}
-
-/// One --out: where it goes and what it receives.
-pub(super) struct Planned {
-    pub path: PathBuf,
-    pub kind: Output,
-    /// `--out -`: standard output.
-    pub stdout: bool,
-}
-
-/// The outputs and the projection, every output flag checked before anything is traced:
-/// formats, the mesh dimension they hold, the projection, paths that must be regular files,
-/// and no output the same file as another or as the input spec.
-pub(super) struct Plan {
-    pub outs: Vec<Planned>,
-    pub projection: Projection,
-}
-
-pub(super) fn plan_outputs(args: &TraceArgs, p: &Problem) -> Result<Plan> {
+/// The outputs of `args`, every output flag checked before anything is traced: formats, the
+/// mesh dimension they hold, the projection, paths that must be regular files, no output the
+/// same file as another or as the input spec, and no flag that would be ignored.
+pub(super) fn plan_outputs(args: &TraceArgs, p: &Problem) -> Result<OutputPlan> {
     let (d, k) = (p.system.ambient_dim(), p.system.codim());
     if args.format.is_some() && args.out.is_empty() {
         return Err(Error::Usage(
             "--format sets the format of --out files: give --out too".into(),
         ));
     }
-    let mut outs = Vec::new();
+    let mut plan = OutputPlan::new(d, &args.project)?;
     for path in &args.out {
-        let stdout = path.as_os_str() == "-";
-        if !stdout {
+        let target = Target::from_path(path);
+        if target != Target::Stdout {
             check_target(path).map_err(|e| e.for_flag("--out"))?;
         }
-        let kind = match (stdout, args.format.as_deref()) {
-            (true, None) => Output::Sample(SampleFormat::Csv),
+        let kind = match (&target, args.format.as_deref()) {
+            (Target::Stdout, None) => Output::Sample(SampleFormat::Csv),
             (_, format) => output_kind(path, format)?,
         };
-        match &kind {
-            Output::Mesh(_) if stdout => {
-                return Err(Error::Usage(
-                    "--out -: standard output takes the sample only (csv or xyz); write mesh \
-                     files to a path"
-                        .into(),
-                ))
-            }
-            Output::Mesh(format) => format.check_holds(d - k, path)?,
-            Output::Sample(_) => {}
-        }
-        outs.push(Planned {
-            path: path.clone(),
-            kind,
-            stdout,
-        });
+        plan.add("--out", target, kind, d - k)?;
     }
-    if outs.iter().filter(|o| o.stdout).count() > 1 {
-        return Err(Error::Usage("--out - is given twice".into()));
-    }
-    if (report_to_stdout(args) || outs.iter().any(|o| o.stdout)) && super::stdout_closed() {
+    let out_stdout = plan.uses_stdout();
+    if (args.report_to_stdout() || out_stdout) && super::stdout_closed() {
         return Err(Error::Usage(format!(
             "{} -: standard output is closed; give a path",
-            if report_to_stdout(args) {
+            if args.report_to_stdout() {
                 "--report"
             } else {
                 "--out"
             }
         )));
     }
-    if report_to_stdout(args) && outs.iter().any(|o| o.stdout) {
+    if args.report_to_stdout() && out_stdout {
         return Err(Error::Usage(
             "--out - and --report - both ask for standard output: give one of them a path".into(),
         ));
@@ -90,14 +54,21 @@ pub(super) fn plan_outputs(args: &TraceArgs, p: &Problem) -> Result<Plan> {
             "--png -: a picture is written to a file; give a path".into(),
         ));
     }
-    let projection = Projection::parse(&args.project, d)?;
-    let wants_mesh = args.png.is_some() || outs.iter().any(|o| matches!(o.kind, Output::Mesh(_)));
-    if args.no_complex && wants_mesh {
+    plan.report = args.report.as_deref().map(Target::from_path);
+    plan.picture = args.png.clone().map(|path| {
+        let (w, h) = args.png_size.unwrap_or(DEFAULT_PNG_SIZE);
+        (path, w, h)
+    });
+    plan.complex = !args.no_complex;
+    if args.ascii {
+        plan.encoding = isomesh::export::Encoding::Ascii;
+    }
+    if args.no_complex && plan.wants_mesh() {
         return Err(Error::Usage(
             "--no-complex: mesh files and pictures need the cell complex".into(),
         ));
     }
-    if args.backend.unwrap_or(Backend::Cpu) == Backend::Cpu {
+    if args.backend.unwrap_or_default() == Backend::Cpu {
         for (set, flag) in [
             (args.precision.is_some(), "--precision"),
             (args.level_slice.is_some(), "--level-slice"),
@@ -137,41 +108,8 @@ pub(super) fn plan_outputs(args: &TraceArgs, p: &Problem) -> Result<Plan> {
                 .into(),
         ));
     }
-    // Files: each absent or a regular file, and no two the same file.
-    let mut files: Vec<(String, &Path, FileId)> = Vec::new();
-    let named = outs
-        .iter()
-        .filter(|o| !o.stdout)
-        .map(|o| ("--out", o.path.as_path()))
-        .chain(args.png.iter().map(|p| ("--png", p.as_path())))
-        .chain(
-            args.report
-                .iter()
-                .filter(|_| !report_to_stdout(args))
-                .map(|p| ("--report", p.as_path())),
-        );
-    for (flag, path) in named {
-        check_target(path).map_err(|e| e.for_flag(flag))?;
-        let id = FileId::of(path)?;
-        if let Some((other, other_path, _)) = files.iter().find(|f| f.2.same(&id)) {
-            return Err(Error::Usage(format!(
-                "{flag} {} and {other} {} are the same file: give each output its own path",
-                shown(&path.display().to_string()),
-                shown(&other_path.display().to_string())
-            )));
-        }
-        files.push((flag.to_string(), path, id));
-    }
-    if let Some(spec) = &args.spec {
-        let id = FileId::of(spec)?;
-        if let Some((flag, path, _)) = files.iter().find(|f| f.2.same(&id)) {
-            return Err(Error::Usage(format!(
-                "{flag} {} is the input spec: it would be overwritten; give another path",
-                shown(&path.display().to_string())
-            )));
-        }
-    }
-    Ok(Plan { outs, projection })
+    plan.check_files("--png", "--report", args.spec.as_deref())?;
+    Ok(plan)
 }
 
 /// The format of `path`: `--format` when given, else its extension.

@@ -45,21 +45,6 @@ pub fn say_line(args: std::fmt::Arguments) {
     }
 }
 
-/// The caption of pictures.
-pub(super) fn caption(name: &str, d: usize, t: &Topology) -> String {
-    format!(
-        "{name}: {}-manifold in R^{d}, cells {}, chi = {}{}",
-        t.dim,
-        t.cells
-            .iter()
-            .map(usize::to_string)
-            .collect::<Vec<_>>()
-            .join("/"),
-        t.euler_characteristic,
-        if t.closed { "" } else { ", with boundary" }
-    )
-}
-
 /// The readable topology summary.
 pub(super) fn summary(t: &Topology, seconds: f64) -> String {
     let names = ["vertices", "edges", "faces", "3-cells"];

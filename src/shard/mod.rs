@@ -263,7 +263,7 @@ pub fn scan(mesher: &Mesher, shard: &Shard, halo: f64) -> Result<Part> {
         .clone()
         .key_box(whole)
         .bbox(within.clone())
-        .scan_part()?;
+        .run(crate::mesher::Job::Scan)?;
     if let Some(why) = run.report().stopped {
         return Err(Error::Trace(format!(
             "the shard's scan stopped early: {why}"

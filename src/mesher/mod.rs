@@ -13,24 +13,39 @@
 //! # Ok::<(), isomesh::Error>(())
 //! ```
 //!
-//! The layers below ([`trace::trace`], [`Complex`],
+//! [`Mesher::run`] is the one driver: the command line, the Python package and the shards
+//! all run through it, and a [`Manifold`] is the only maker of reports. The command line then
+//! writes an [`OutputPlan`] with [`Manifold::deliver`] and reports with
+//! [`Manifold::final_report`].
+//!
+//! The layers below ([`trace::trace`], [`Complex`](crate::complex::Complex),
 //! [`export`](crate::export)) stay public for callers who need them.
 
-use std::path::Path;
-use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::{Arc, OnceLock};
-use std::time::Instant;
+mod manifold;
+mod outputs;
 
-use crate::complex::{Complex, Topology};
+use std::path::Path;
+use std::sync::atomic::AtomicBool;
+use std::sync::{Arc, OnceLock};
+
 use crate::error::{Error, Result};
-use crate::export::mesh::{write_mesh_as, Encoding, Mesh};
-use crate::export::picture::Picture;
-use crate::export::{write_sample, OutputFormat, Projection};
 use crate::expr::{preset, ImplicitFunction, Problem, Spec, TriangulationSpec};
 use crate::memory;
-use crate::report::{BackendInfo, ComplexReport, Report, RunInfo};
-use crate::trace::{self, checks, CpuOracle, Oracle, Progress, Sample, TraceOptions};
+use crate::report::{BackendInfo, Report, RunInfo};
+use crate::trace::{self, checks, CpuOracle, Oracle, Progress, TraceOptions};
 use crate::triangulation::{Triangulation, TriangulationKind};
+
+pub use manifold::{caption, picture_complex, write_complex, Manifold, Warning, WriteOptions};
+pub use outputs::{Delivery, OutputPlan, PlannedOutput, Target};
+
+/// What a run does.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Job {
+    /// Trace M from seeds (and from box points projected onto M).
+    Trace,
+    /// Scan every k-simplex in the box.
+    Scan,
+}
 
 /// Which oracle decides the intersection tests.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -79,6 +94,8 @@ pub struct Mesher {
     precision: Option<crate::gpu::Precision>,
     #[cfg(feature = "gpu")]
     device_values: bool,
+    #[cfg(feature = "gpu")]
+    level_slice: Option<usize>,
     threads: Option<usize>,
     max_memory: u64,
     cancel: Option<Arc<AtomicBool>>,
@@ -170,6 +187,8 @@ impl Mesher {
             precision: None,
             #[cfg(feature = "gpu")]
             device_values: false,
+            #[cfg(feature = "gpu")]
+            level_slice: None,
             threads: None,
             max_memory: memory::default_limit(),
             cancel: None,
@@ -259,8 +278,18 @@ impl Mesher {
         self
     }
 
-    /// Worker threads, in a pool of the mesher's own (default: rayon's current pool); more
-    /// than [`max_threads`] run [`max_threads`].
+    /// GPU backend: frontier simplices per slice of a trace level, `None` for whole levels
+    /// ([`GpuOracle::set_level_slice`](crate::gpu::GpuOracle::set_level_slice)); the result
+    /// is the same.
+    #[cfg(feature = "gpu")]
+    pub fn level_slice(mut self, simplices: Option<usize>) -> Self {
+        self.level_slice = simplices;
+        self
+    }
+
+    /// Worker threads, in a pool of the mesher's own that builds the complex too (default:
+    /// rayon's current pool); more than [`max_threads`] run [`max_threads`], with a
+    /// [`Warning::Threads`].
     pub fn threads(mut self, threads: usize) -> Self {
         self.threads = Some(threads);
         self
@@ -298,6 +327,11 @@ impl Mesher {
     pub fn key_box(mut self, bbox: Vec<[f64; 2]>) -> Self {
         self.key_box = Some(bbox);
         self
+    }
+
+    /// How many seeds a trace starts from.
+    pub fn seed_count(&self) -> usize {
+        self.seeds.len()
     }
 
     /// The box of a run, if one was given.
@@ -352,55 +386,60 @@ impl Mesher {
 
     /// Traces M from the seeds (and a box search where asked or where there is no seed).
     /// An early stop (cancel flag, memory limit) returns what was found, marked incomplete;
-    /// a run that finds no crossed simplex is an [`Error::Trace`] saying why.
+    /// a run that finds no crossed simplex, or finds f vanishing on a region, is an error
+    /// saying why ([`Manifold::failure`]).
     pub fn trace(&self) -> Result<Manifold> {
-        self.run(false)
+        self.run(Job::Trace).and_then(Manifold::found)
     }
 
     /// Scans every k-simplex in the box (no seed needed; every component is found). As with
     /// [`Mesher::trace`], finding nothing is an error.
     pub fn scan(&self) -> Result<Manifold> {
-        self.run(true)
+        self.run(Job::Scan).and_then(Manifold::found)
     }
 
-    /// [`Mesher::scan`] of a shard's box, where finding nothing is a result.
-    pub(crate) fn scan_part(&self) -> Result<Manifold> {
-        self.run_any(true)
-    }
-
-    fn run(&self, exhaustive: bool) -> Result<Manifold> {
-        let m = self.run_any(exhaustive)?;
-        if let Some((i, x)) = &m.sample.stats.zero_region {
-            return Err(checks::region_error(*i, x));
+    /// The one driver of every run (the command line, Python and the shards alike): a trace
+    /// or scan that returns whatever it finds, even nothing, with its report and warnings.
+    /// Its errors are those of the setup (threads, the triangulation, the backend, f zero at
+    /// every seed); [`Manifold::failure`] says whether what it found is a mesh of M.
+    pub fn run(&self, job: Job) -> Result<Manifold> {
+        if let Some(0) = self.threads {
+            return Err(Error::Usage("threads must be at least 1".into()));
         }
-        // Nothing found, and not for want of time or memory: an error, as on the command
-        // line, rather than an empty manifold that looks like a result.
-        if m.is_empty() && m.complete() {
-            return Err(Error::Trace(
-                m.sample
-                    .stats
-                    .why_nothing_found(exhaustive, !self.seeds.is_empty()),
-            ));
-        }
+        let cap = max_threads();
+        let mut warnings = Vec::new();
+        let pool = match self.threads {
+            Some(n) => {
+                if n > cap {
+                    warnings.push(Warning::Threads {
+                        asked: n,
+                        running: cap,
+                    });
+                }
+                let n = n.min(cap);
+                let pool = rayon::ThreadPoolBuilder::new()
+                    .num_threads(n)
+                    .build()
+                    .map_err(|e| {
+                        Error::io(
+                            format!("cannot start {n} threads"),
+                            std::io::Error::other(e),
+                        )
+                    })?;
+                Some(Arc::new(pool))
+            }
+            None => None,
+        };
+        let mut m = match &pool {
+            Some(p) => p.install(|| self.run_in_pool(job, warnings))?,
+            None => self.run_in_pool(job, warnings)?,
+        };
+        m.pool = pool;
         Ok(m)
     }
 
-    /// A trace or scan, whatever it finds.
-    fn run_any(&self, exhaustive: bool) -> Result<Manifold> {
-        if let Some(0) = self.threads {
-            return Err(Error::Spec("threads must be at least 1".into()));
-        }
-        match self.threads.map(|n| n.min(max_threads())) {
-            Some(n) => rayon::ThreadPoolBuilder::new()
-                .num_threads(n)
-                .build()
-                .map_err(|e| Error::Spec(format!("cannot start {n} threads: {e}")))?
-                .install(|| self.run_in_pool(exhaustive)),
-            None => self.run_in_pool(exhaustive),
-        }
-    }
-
-    fn run_in_pool(&self, exhaustive: bool) -> Result<Manifold> {
+    fn run_in_pool(&self, job: Job, mut warnings: Vec<Warning>) -> Result<Manifold> {
+        let exhaustive = job == Job::Scan;
         let tri = self.build_triangulation()?;
         let f = &*self.function;
         checks::check_not_zero(f, self.bbox.as_deref(), &self.seeds, tri.edge())?;
@@ -408,10 +447,15 @@ impl Mesher {
             Vec::new()
         } else {
             checks::singular_seeds(f, &self.seeds, tri.edge())
-                .into_iter()
-                .map(|(i, _)| i)
-                .collect()
         };
+        warnings.extend(
+            singular_seeds
+                .iter()
+                .map(|(seed, point)| Warning::SingularSeed {
+                    seed: *seed,
+                    point: point.clone(),
+                }),
+        );
         let progress = self.progress.clone();
         let report_progress = move |p: &Progress| {
             if let Some(cb) = &progress {
@@ -431,7 +475,7 @@ impl Mesher {
         };
         let cpu = CpuOracle::new(f);
         #[cfg(feature = "gpu")]
-        let gpu = self.gpu_oracle()?;
+        let gpu = self.gpu_oracle(&mut warnings)?;
         #[cfg(feature = "gpu")]
         let oracle: &dyn Oracle = match &gpu {
             Some(o) => o,
@@ -459,6 +503,16 @@ impl Mesher {
             // A scan finds every branch.
             checks.singular.clear();
         }
+        // One warning stands for the crossings found; the report lists them all.
+        if let Some(x) = checks.singular.first() {
+            warnings.push(Warning::SingularCrossing(x.clone()));
+        }
+        if checks.suspect > 0 {
+            warnings.push(Warning::Suspect {
+                count: checks.suspect,
+                of: sample.len(),
+            });
+        }
         #[cfg(feature = "gpu")]
         let backend = match &gpu {
             Some(o) => BackendInfo::of_gpu(o),
@@ -475,22 +529,26 @@ impl Mesher {
             peak_memory_bytes: peak,
             max_memory_bytes: self.max_memory,
             suspect_crossings: checks.suspect,
-            singular_seeds,
+            singular_seeds: singular_seeds.into_iter().map(|(i, _)| i).collect(),
             singular_crossings: checks.singular,
         };
         Ok(Manifold {
             function: self.function.clone(),
             bbox: self.bbox.clone(),
             max_memory: self.max_memory,
+            pool: None,
+            exhaustive,
+            had_seeds: !self.seeds.is_empty(),
             report: Report::new(&sample, run),
             sample,
+            warnings,
             complex: OnceLock::new(),
         })
     }
 
     /// The GPU oracle the backend asks for, or `None` for the CPU.
     #[cfg(feature = "gpu")]
-    fn gpu_oracle(&self) -> Result<Option<crate::gpu::GpuOracle<'_>>> {
+    fn gpu_oracle(&self, warnings: &mut Vec<Warning>) -> Result<Option<crate::gpu::GpuOracle<'_>>> {
         use crate::gpu::{Gpu, GpuOracle};
         let f = &*self.function;
         let gpu = match self.backend {
@@ -511,12 +569,23 @@ impl Mesher {
                 }
                 match Gpu::open(false) {
                     Ok(g) => g,
-                    Err(_) => return Ok(None),
+                    Err(e) => {
+                        warnings.push(Warning::NoGpu {
+                            why: e.to_string(),
+                            gpu_settings: self.precision.is_some()
+                                || self.level_slice.is_some()
+                                || self.device_values,
+                        });
+                        return Ok(None);
+                    }
                 }
             }
         };
         let o = GpuOracle::new(gpu, f, self.precision)?;
         o.set_device_values(self.device_values);
+        if let Some(slice) = self.level_slice {
+            o.set_level_slice(slice);
+        }
         Ok(Some(o))
     }
 }
@@ -528,7 +597,7 @@ const MAX_THREADS_PER_CORE: usize = 1;
 /// Most worker threads in all.
 const MAX_THREADS: usize = 1024;
 
-/// The most worker threads a run uses: 4 per core, at most 1024 (more only wait on one
+/// The most worker threads a run uses: one per core, at most 1024 (more only wait on one
 /// another, and thousands take seconds to start).
 pub fn max_threads() -> usize {
     let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
@@ -541,214 +610,4 @@ pub fn too_many_threads(cap: usize) -> String {
         "more than this machine can use: running {cap} (at most {MAX_THREADS_PER_CORE} per \
          core, and at most {MAX_THREADS}; more threads than cores only slow a run down)"
     )
-}
-
-/// M as a trace or scan found it: the sample S, and on demand its cell complex, topology,
-/// report and files. It keeps f, the box and the memory limit it was found with, so none of
-/// them is given again.
-pub struct Manifold {
-    function: Arc<dyn ImplicitFunction>,
-    bbox: Option<Vec<[f64; 2]>>,
-    max_memory: u64,
-    sample: Sample,
-    report: Report,
-    complex: OnceLock<(Complex, Topology, f64)>,
-}
-
-/// How [`Manifold::write_with`] writes a file.
-#[derive(Clone, Debug, Default)]
-pub struct WriteOptions {
-    /// The format by name (`csv`, `xyz`, `ply`, `obj`, `off`, `stl`, `mesh`, `vtu`, `npz`),
-    /// overriding the file extension.
-    pub format: Option<String>,
-    /// How R^d is seen in 3-D: `auto` (the default), `pca`, or coordinates such as `1,2,4`.
-    pub projection: Option<String>,
-    /// PLY and VTU as text instead of binary (`--ascii`).
-    pub ascii: bool,
-}
-
-impl Manifold {
-    /// The sample: crossed k-simplices (keys) in a deterministic order.
-    pub fn sample(&self) -> &Sample {
-        &self.sample
-    }
-
-    /// How many crossed k-simplices (points of M) were found.
-    pub fn len(&self) -> usize {
-        self.sample.len()
-    }
-
-    /// Whether nothing was found.
-    pub fn is_empty(&self) -> bool {
-        self.sample.is_empty()
-    }
-
-    /// One point of M per crossed simplex, d coordinates each, in the sample's order.
-    pub fn points(&self) -> Vec<f64> {
-        self.sample.points()
-    }
-
-    /// False when the run stopped early (cancel flag, memory limit).
-    pub fn complete(&self) -> bool {
-        self.sample.stats.stopped.is_none()
-    }
-
-    /// f.
-    pub fn function(&self) -> &dyn ImplicitFunction {
-        &*self.function
-    }
-
-    /// The cell complex, built on first use (clipped by the box and f's boundary
-    /// inequalities, within the memory limit).
-    pub fn complex(&self) -> Result<&Complex> {
-        self.built().map(|c| &c.0)
-    }
-
-    /// The complex's topology (counts, Euler characteristic, manifoldness, Betti numbers).
-    pub fn topology(&self) -> Result<&Topology> {
-        self.built().map(|c| &c.1)
-    }
-
-    fn built(&self) -> Result<&(Complex, Topology, f64)> {
-        self.built_cancellable(&AtomicBool::new(false))
-    }
-
-    /// [`Manifold::complex`] that stops, with an error, once `cancel` is set (Ctrl-C).
-    pub fn complex_cancellable(&self, cancel: &AtomicBool) -> Result<&Complex> {
-        self.built_cancellable(cancel).map(|c| &c.0)
-    }
-
-    fn built_cancellable(&self, cancel: &AtomicBool) -> Result<&(Complex, Topology, f64)> {
-        if let Some(c) = self.complex.get() {
-            return Ok(c);
-        }
-        if self.sample.is_empty() {
-            return Err(Error::Trace(
-                "nothing was found: there is no complex to build".into(),
-            ));
-        }
-        let interrupted = || Error::Trace("the cell complex was interrupted".into());
-        let c = Complex::build_cancellable(
-            &self.sample,
-            &*self.function,
-            self.bbox.as_deref(),
-            self.max_memory,
-            cancel,
-        )
-        .map_err(|e| {
-            if cancel.load(Ordering::Relaxed) {
-                interrupted()
-            } else {
-                e
-            }
-        })?;
-        let t0 = Instant::now();
-        let t = c.topology_cancellable(cancel).ok_or_else(interrupted)?;
-        let secs = t0.elapsed().as_secs_f64();
-        Ok(self.complex.get_or_init(|| (c, t, secs)))
-    }
-
-    /// The report, with the complex's keys once the complex is built: the keys of
-    /// `isomesh trace --report`.
-    pub fn report(&self) -> Report {
-        match self.complex.get() {
-            Some((c, t, secs)) => self
-                .report
-                .clone()
-                .with_complex(ComplexReport::new(c, t, *secs, "auto"), t.components),
-            None => self.report.clone(),
-        }
-    }
-
-    /// Writes the sample (`.csv`, `.xyz`, `.txt`), its keys (`.keys`) or the mesh (`.ply`,
-    /// `.obj`, `.off`, `.stl`, `.mesh`, `.vtu`, `.npz`), chosen by the extension; the mesh
-    /// builds the complex.
-    pub fn write(&self, path: impl AsRef<Path>) -> Result<()> {
-        self.write_with(path, &WriteOptions::default())
-    }
-
-    /// [`write`](Self::write) with a format and a projection.
-    pub fn write_with(&self, path: impl AsRef<Path>, opts: &WriteOptions) -> Result<()> {
-        let path = path.as_ref();
-        match OutputFormat::for_path(path, opts.format.as_deref())? {
-            OutputFormat::Sample(format) => write_sample(path, &self.sample, format),
-            OutputFormat::Mesh(_) => write_complex(
-                self.complex()?,
-                Some(self.function()),
-                &self.report.name,
-                path,
-                opts,
-            ),
-        }
-    }
-
-    /// Draws the mesh into a PNG picture of `width` x `height` pixels.
-    pub fn picture(&self, path: impl AsRef<Path>, width: usize, height: usize) -> Result<()> {
-        let (c, t, _) = self.built()?;
-        let f = Some(self.function());
-        picture_complex(c, t, f, &self.report.name, path.as_ref(), width, height)
-    }
-}
-
-/// Writes the cell complex `c` of f (orienting its cells, where given) as the mesh format
-/// of `path`'s extension or `opts.format` (`.ply`, `.obj`, `.off`, `.stl`, `.mesh`, `.vtu`,
-/// `.npz`); `name` goes in the file's header.
-pub fn write_complex(
-    c: &Complex,
-    f: Option<&dyn ImplicitFunction>,
-    name: &str,
-    path: &Path,
-    opts: &WriteOptions,
-) -> Result<()> {
-    let OutputFormat::Mesh(format) = OutputFormat::for_path(path, opts.format.as_deref())? else {
-        return Err(Error::Output(format!(
-            "{}: a cell complex is written as a mesh (.ply, .obj, .off, .stl, .mesh, .vtu, \
-             .npz), not as points",
-            path.display()
-        )));
-    };
-    format.check_holds(c.dim(), path)?;
-    let projection = Projection::parse(
-        opts.projection.as_deref().unwrap_or("auto"),
-        c.ambient_dim(),
-    )?;
-    let mesh = Mesh::new(c, f, &projection, name);
-    let encoding = if opts.ascii {
-        Encoding::Ascii
-    } else {
-        Encoding::Binary
-    };
-    write_mesh_as(path, &mesh, format, encoding)
-}
-
-/// Draws the cell complex `c` (with its topology `t`) into a PNG picture of `width` x
-/// `height` pixels, captioned with `name`.
-pub fn picture_complex(
-    c: &Complex,
-    t: &Topology,
-    f: Option<&dyn ImplicitFunction>,
-    name: &str,
-    path: &Path,
-    width: usize,
-    height: usize,
-) -> Result<()> {
-    let projection = Projection::parse("auto", c.ambient_dim())?;
-    let mesh = Mesh::new(c, f, &projection, name);
-    let caption = format!(
-        "{name}: {}-manifold in R^{}, chi = {}",
-        t.dim,
-        c.ambient_dim(),
-        t.euler_characteristic
-    );
-    Picture::render(&mesh, width, height, &caption)?.write_png(path)
-}
-
-impl std::fmt::Debug for Manifold {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.debug_struct("Manifold")
-            .field("name", &self.report.name)
-            .field("simplex_count", &self.sample.len())
-            .field("complete", &self.complete())
-            .finish_non_exhaustive()
-    }
 }
