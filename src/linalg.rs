@@ -3,6 +3,18 @@
 //! Small dense linear algebra: LU with partial pivoting, for the custom and rotated
 //! triangulation maps and for Newton steps. Row-major storage throughout.
 
+/// A power of two near 1/v (1 for 0 or subnormal v): scaling by it is exact.
+#[inline]
+pub(crate) fn pow2_inverse(v: f64) -> f64 {
+    let e = ((v.to_bits() >> 52) & 0x7ff) as i64;
+    if e == 0 || e == 0x7ff {
+        return 1.0;
+    }
+    // v in [2^(e-1023), 2^(e-1022)): multiply by 2^(1023-e), kept in the normal range.
+    let t = (2046 - e).clamp(1, 2046);
+    f64::from_bits((t as u64) << 52)
+}
+
 /// An LU factorisation with partial pivoting of an n x n matrix.
 #[derive(Clone, Debug)]
 pub struct Lu {

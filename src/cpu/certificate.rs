@@ -361,7 +361,7 @@ pub fn pack_rows<R: DeviceReal>(
             }
             big = big.max(v.abs() + e);
         }
-        let s = super::solve::pow2_inverse(big);
+        let s = crate::linalg::pow2_inverse(big);
         for j in 0..n {
             let lv = val(j, c) * s;
             let lr = R::of(lv).wide();

@@ -22,6 +22,7 @@ use num_bigint::BigInt;
 use num_traits::{Float, One, Signed, ToPrimitive, Zero};
 
 use super::certificate::{certify_exact, gauss_jordan, Margins, CROSSED, OUTSIDE};
+use crate::linalg::pow2_inverse;
 
 /// The verdict on one k-simplex.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -175,18 +176,6 @@ pub(crate) fn scaled_row_factors(k: usize, val: impl Fn(usize, usize) -> f64, ou
         let big = (0..=k).fold(0.0f64, |m, j| m.max(val(j, c).abs()));
         *o = pow2_inverse(big);
     }
-}
-
-/// A power of two near 1/v (1 for 0 or subnormal v): scaling by it is exact.
-#[inline]
-pub(crate) fn pow2_inverse(v: f64) -> f64 {
-    let e = ((v.to_bits() >> 52) & 0x7ff) as i64;
-    if e == 0 || e == 0x7ff {
-        return 1.0;
-    }
-    // v in [2^(e-1023), 2^(e-1022)): multiply by 2^(1023-e), kept in the normal range.
-    let t = (2046 - e).clamp(1, 2046);
-    f64::from_bits((t as u64) << 52)
 }
 
 /// The completely-labelled test in exact integer arithmetic on the given f64 values.

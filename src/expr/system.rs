@@ -5,9 +5,9 @@ use std::sync::Arc;
 
 use super::ast::Expr;
 use super::parser::{check_counts, parse_expr_at, ParseError, Scope};
-use crate::cpu::solve::pow2_inverse;
 use crate::error::{check_finite_in, Error, Result};
 use crate::expr::program::{Program, Scratch};
+use crate::linalg::pow2_inverse;
 use crate::linalg::Lu;
 use crate::triangulation::{check_dim, random_rotation};
 

@@ -8,6 +8,7 @@ use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
 
 use super::manifold::{caption, Manifold};
+use crate::complex::{Complex, Topology};
 use crate::error::{shown, Error, Result};
 use crate::export::mesh::{write_mesh_as, Encoding, Mesh};
 use crate::export::picture::Picture;
@@ -217,6 +218,32 @@ pub struct Delivery {
     pub topology_s: Option<f64>,
 }
 
+impl Delivery {
+    /// Records the outcome of writing `target`.
+    fn record(&mut self, target: &Target, result: Result<()>, failed: &mut Vec<Error>) {
+        match result {
+            Ok(()) => {
+                if let Target::File(p) = target {
+                    self.written.push(p.clone());
+                }
+            }
+            Err(e) => {
+                self.not_written.push(target.named());
+                failed.push(e);
+            }
+        }
+    }
+
+    /// Marks `target` not written unless it was written or has failed already.
+    fn left_out(&mut self, target: &Target) {
+        let name = target.named();
+        let written = matches!(target, Target::File(p) if self.written.contains(p));
+        if !written && !self.not_written.contains(&name) {
+            self.not_written.push(name);
+        }
+    }
+}
+
 impl Manifold {
     /// Writes the plan's outputs: the sample first (whatever happens next, it is on disk),
     /// then, unless f vanishes on a region or `cancel` is set, the complex and the mesh files
@@ -228,21 +255,56 @@ impl Manifold {
         cancel: &AtomicBool,
         phase: &(dyn Fn(&str) + Sync),
     ) -> Delivery {
-        let stopping = || cancel.load(Ordering::SeqCst);
         let mut out = Delivery::default();
         let mut failed = Vec::new();
-        let mut done = |target: &Target, result: Result<()>, out: &mut Delivery| match result {
-            Ok(()) => {
-                if let Target::File(p) = target {
-                    out.written.push(p.clone());
+        self.write_samples(plan, phase, &mut out, &mut failed);
+        // f vanishing on a region: the sample is kept, no mesh of it is made.
+        let mut failure = self
+            .sample
+            .stats
+            .zero_region
+            .as_ref()
+            .map(|(i, x)| checks::region_error(*i, x));
+        let stopping = || cancel.load(Ordering::SeqCst);
+        let wanted = plan.complex || plan.wants_mesh();
+        if wanted && failure.is_none() && !self.is_empty() && !stopping() {
+            phase("complex: building the cell complex");
+            match self.built_with(cancel, phase) {
+                Ok(built) => {
+                    out.topology_s = Some(built.2);
+                    if plan.wants_mesh() {
+                        failure = self
+                            .write_meshes(built, plan, cancel, phase, &mut out, &mut failed)
+                            .err();
+                    }
                 }
+                // Stopped by a signal: the report says so, with no complex.
+                Err(_) if stopping() => {}
+                Err(e) => failure = Some(e),
             }
-            Err(e) => {
-                out.not_written.push(target.named());
-                failed.push(e);
+        }
+        // Every planned file neither written nor failed was left out.
+        for o in &plan.outputs {
+            if o.target != Target::Stdout {
+                out.left_out(&o.target);
             }
-        };
-        for o in &self.outputs_of(plan, false) {
+        }
+        if let Some((p, _, _)) = &plan.picture {
+            out.left_out(&Target::File(p.clone()));
+        }
+        out.errors = failure.into_iter().chain(failed).collect();
+        out
+    }
+
+    /// Writes the plan's sample outputs.
+    fn write_samples(
+        &self,
+        plan: &OutputPlan,
+        phase: &(dyn Fn(&str) + Sync),
+        out: &mut Delivery,
+        failed: &mut Vec<Error>,
+    ) {
+        for o in self.outputs_of(plan, false) {
             let OutputFormat::Sample(format) = o.format else {
                 continue;
             };
@@ -258,90 +320,51 @@ impl Manifold {
                     write_sample(path, &self.sample, format)
                 }
             };
-            done(&o.target, result, &mut out);
+            out.record(&o.target, result, failed);
         }
-        // f vanishing on a region: the sample is kept, no mesh of it is made.
-        let mut failure = self
-            .sample
-            .stats
-            .zero_region
-            .as_ref()
-            .map(|(i, x)| checks::region_error(*i, x));
-        let wanted = plan.complex || plan.wants_mesh();
-        if wanted && failure.is_none() && !self.is_empty() && !stopping() {
-            phase("complex: building the cell complex");
-            match self.built_with(cancel, phase) {
-                Ok((c, t, secs)) => {
-                    out.topology_s = Some(*secs);
-                    if plan.wants_mesh() {
-                        // Vertices in R^3 and the polygons as triangles, generously.
-                        let cells: usize = t.cells.iter().sum();
-                        let need = 48 * t.cells[0] + 64 * cells;
-                        match memory::check_headroom("the mesh", need, self.max_memory) {
-                            Err(e) => failure = Some(e),
-                            Ok(()) => {
-                                let mesh = Mesh::new(
-                                    c,
-                                    Some(self.function()),
-                                    &plan.projection,
-                                    &self.report.name,
-                                );
-                                // A signal lets the file being written finish, and skips the rest.
-                                for o in self.outputs_of(plan, true) {
-                                    let (OutputFormat::Mesh(format), Target::File(path), false) =
-                                        (o.format, &o.target, stopping())
-                                    else {
-                                        continue;
-                                    };
-                                    phase(&format!("writing {}", shown(&o.target.named())));
-                                    let result = write_mesh_as(path, &mesh, format, plan.encoding);
-                                    done(&o.target, result, &mut out);
-                                }
-                                if let (Some((path, w, h)), false) = (&plan.picture, stopping()) {
-                                    let target = Target::File(path.clone());
-                                    phase(&format!("writing {}", shown(&target.named())));
-                                    let result = memory::check_headroom(
-                                        "the picture",
-                                        w.saturating_mul(*h).saturating_mul(16),
-                                        self.max_memory,
-                                    )
-                                    .and_then(|()| {
-                                        let d = c.ambient_dim();
-                                        Picture::render(
-                                            &mesh,
-                                            *w,
-                                            *h,
-                                            &caption(&self.report.name, d, t),
-                                        )
-                                    })
-                                    .and_then(|pic| pic.write_png(path));
-                                    done(&target, result, &mut out);
-                                }
-                            }
-                        }
-                    }
-                }
-                // Stopped by a signal: the report says so, with no complex.
-                Err(_) if stopping() => {}
-                Err(e) => failure = Some(e),
-            }
+    }
+
+    /// Writes the plan's mesh files and picture of the built complex; an error when the
+    /// mesh would not fit in the memory limit. A signal lets the file being written finish,
+    /// and skips the rest.
+    fn write_meshes(
+        &self,
+        (c, t, _): &(Complex, Topology, f64),
+        plan: &OutputPlan,
+        cancel: &AtomicBool,
+        phase: &(dyn Fn(&str) + Sync),
+        out: &mut Delivery,
+        failed: &mut Vec<Error>,
+    ) -> Result<()> {
+        let stopping = || cancel.load(Ordering::SeqCst);
+        // Vertices in R^3 and the polygons as triangles, generously.
+        let cells: usize = t.cells.iter().sum();
+        memory::check_headroom("the mesh", 48 * t.cells[0] + 64 * cells, self.max_memory)?;
+        let name = &self.report.name;
+        let mesh = Mesh::new(c, Some(self.function()), &plan.projection, name);
+        for o in self.outputs_of(plan, true) {
+            let (OutputFormat::Mesh(format), Target::File(path), false) =
+                (o.format, &o.target, stopping())
+            else {
+                continue;
+            };
+            phase(&format!("writing {}", shown(&o.target.named())));
+            let result = write_mesh_as(path, &mesh, format, plan.encoding);
+            out.record(&o.target, result, failed);
         }
-        // Every planned file neither written nor failed was left out.
-        for o in &plan.outputs {
-            if let Target::File(p) = &o.target {
-                if !out.written.contains(p) && !out.not_written.contains(&o.target.named()) {
-                    out.not_written.push(o.target.named());
-                }
-            }
+        if let (Some((path, w, h)), false) = (&plan.picture, stopping()) {
+            let target = Target::File(path.clone());
+            phase(&format!("writing {}", shown(&target.named())));
+            let pixels = w.saturating_mul(*h).saturating_mul(16);
+            let result = memory::check_headroom("the picture", pixels, self.max_memory)
+                .and_then(|()| {
+                    let caption = caption(name, c.ambient_dim(), t);
+                    Picture::render(&mesh, *w, *h, &caption)
+                })
+                .and_then(|pic| pic.write_png(path));
+            out.record(&target, result, failed);
         }
-        if let Some((p, _, _)) = &plan.picture {
-            let t = Target::File(p.clone());
-            if !out.written.contains(p) && !out.not_written.contains(&t.named()) {
-                out.not_written.push(t.named());
-            }
-        }
-        out.errors = failure.into_iter().chain(failed).collect();
-        out
+        Ok(())
     }
 
     /// The plan's outputs of the mesh (`true`) or of the sample.

@@ -6,7 +6,7 @@ use std::ops::Range;
 
 use rayon::prelude::*;
 
-use super::level::{sort, Back, Found, Frontier};
+use super::frontier::{sort, Back, Found, Frontier, Verdicts};
 use super::table::{Key, Table};
 use super::{Decisions, Progress, StopReason, TraceContext, TraceStats, DEFAULT_EXTENT_STEPS};
 use crate::cpu::solve::Status;
@@ -33,12 +33,6 @@ pub(crate) struct Engine<'a, const W: usize> {
     /// Lattice base vertices of the seeds' first simplices (d each), to tell, with no box,
     /// how far the trace has gone.
     pub origins: Vec<i32>,
-}
-
-/// Oracle verdicts on a batch of candidates.
-pub(crate) struct Verdicts {
-    pub status: Vec<Status>,
-    pub lambda: Vec<f64>,
 }
 
 impl<'a, const W: usize> Engine<'a, W> {

@@ -11,7 +11,8 @@ use std::ops::Range;
 
 use rayon::prelude::*;
 
-use super::engine::{Engine, Verdicts};
+use super::engine::Engine;
+use super::frontier::{par_ranges, sort, sort_runs, Back, Found, Frontier, Verdicts};
 use super::table::Key;
 use crate::cpu::pivot::Pivot;
 use crate::cpu::solve::Status;
@@ -25,8 +26,6 @@ const SIGMA_CHUNK: usize = 24;
 const SLICE_CANDIDATES: usize = 1 << 20;
 /// Fewest found simplices per parallel work item (points).
 const POINT_CHUNK: usize = 128;
-/// Below this length a sort runs on the calling thread.
-const PAR_SORT_MIN: usize = 1 << 14;
 
 /// A k-simplex to test: the facet of cofacet tau number `via` of frontier simplex `from`
 /// that lacks tau's vertex `drop`. Tau's new vertex sits at `apex_at` and has cache index
@@ -111,89 +110,6 @@ impl<const W: usize> Decided<W> {
     fn crossed(&self, key: &Key<W>) -> bool {
         self.index(key)
             .is_some_and(|i| self.verdicts.status[i].crossed())
-    }
-}
-
-/// The crossed simplices a level found, sorted by key, with their vertex-cache rows,
-/// their points (none when not asked for) and their way back (see [`Frontier`]).
-pub(crate) struct Found<const W: usize> {
-    pub keys: Vec<Key<W>>,
-    pub rows: Vec<u32>,
-    pub points: Vec<f64>,
-    pub back: Back,
-}
-
-/// For each simplex of a list, the cache indices of the new vertices of its cofacets known
-/// to hold another crossed simplex of S already (the cofacets it was found through): the
-/// pivot there would only name a known simplex, so they are skipped.
-#[derive(Default)]
-pub(crate) struct Back {
-    /// `vertices[end[i - 1]..end[i]]` belong to simplex i.
-    end: Vec<u32>,
-    vertices: Vec<u32>,
-}
-
-impl Back {
-    fn of(&self, i: usize) -> &[u32] {
-        if self.end.is_empty() {
-            return &[];
-        }
-        let start = if i == 0 { 0 } else { self.end[i - 1] as usize };
-        &self.vertices[start..self.end[i] as usize]
-    }
-
-    /// Keeps simplex i's list (call in order).
-    pub fn push_from(&mut self, other: &Back, i: usize) {
-        self.vertices.extend_from_slice(other.of(i));
-        self.end.push(self.vertices.len() as u32);
-    }
-}
-
-/// The simplices a level starts from (a range of S) with their vertex-cache rows
-/// (k + 1 each) and their way back.
-pub(crate) struct Frontier {
-    pub range: Range<usize>,
-    pub rows: Vec<u32>,
-    pub back: Back,
-}
-
-/// Runs `f` on consecutive ranges covering `0..len`, about four per thread and at least
-/// `min_chunk` items each, in parallel when there is more than one; returns the results
-/// in order.
-pub(crate) fn par_ranges<T: Send>(
-    len: usize,
-    min_chunk: usize,
-    f: impl Fn(Range<usize>) -> T + Sync,
-) -> Vec<T> {
-    let chunk = len
-        .div_ceil(4 * rayon::current_num_threads())
-        .max(min_chunk)
-        .max(1);
-    let parts = len.div_ceil(chunk);
-    if parts <= 1 {
-        return vec![f(0..len)];
-    }
-    (0..parts)
-        .into_par_iter()
-        .map(|c| f(c * chunk..((c + 1) * chunk).min(len)))
-        .collect()
-}
-
-/// Sorts, in parallel when it pays.
-pub(crate) fn sort<T: Ord + Send>(v: &mut [T]) {
-    if v.len() < PAR_SORT_MIN {
-        v.sort_unstable();
-    } else {
-        v.par_sort_unstable();
-    }
-}
-
-/// Sorts a concatenation of sorted runs (merging them), in parallel when it pays.
-fn sort_runs<T: Ord + Send>(v: &mut [T]) {
-    if v.len() < PAR_SORT_MIN {
-        v.sort();
-    } else {
-        v.par_sort();
     }
 }
 
@@ -661,8 +577,7 @@ impl<const W: usize> Engine<'_, W> {
         });
         let mut back = Back::default();
         for h in &hits {
-            back.vertices.extend_from_slice(h.3);
-            back.end.push(back.vertices.len() as u32);
+            back.push_list(h.3);
         }
         Found {
             keys: hits.iter().map(|h| h.0).collect(),
@@ -713,12 +628,12 @@ fn backs<const W: usize>(cands: &[Candidate<W>], rows: &[u32], n: usize) -> Back
     let mut back = Back::default();
     for (i, c) in cands.iter().enumerate() {
         if i > 0 && cands[i - 1].key != c.key {
-            back.end.push(back.vertices.len() as u32);
+            back.end_list();
         }
-        back.vertices.push(tau_vertex(c, rows, n, c.drop as usize));
+        back.push_vertex(tau_vertex(c, rows, n, c.drop as usize));
     }
     if !cands.is_empty() {
-        back.end.push(back.vertices.len() as u32);
+        back.end_list();
     }
     back
 }

@@ -19,6 +19,7 @@
 
 pub mod checks;
 mod engine;
+mod frontier;
 mod level;
 mod oracle;
 mod region;

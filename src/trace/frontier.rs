@@ -1,0 +1,118 @@
+//! What a trace level starts from and hands on (its frontier, the simplices it found, their
+//! ways back, the oracle's verdicts), and the parallel helpers the level and the engine share.
+
+use std::ops::Range;
+
+use rayon::prelude::*;
+
+use super::table::Key;
+use crate::cpu::solve::Status;
+
+/// Below this length a sort runs on the calling thread.
+const PAR_SORT_MIN: usize = 1 << 14;
+
+/// Oracle verdicts on a batch of candidates.
+pub(crate) struct Verdicts {
+    pub status: Vec<Status>,
+    pub lambda: Vec<f64>,
+}
+
+/// The crossed simplices a level found, sorted by key, with their vertex-cache rows,
+/// their points (none when not asked for) and their way back (see [`Frontier`]).
+pub(crate) struct Found<const W: usize> {
+    pub keys: Vec<Key<W>>,
+    pub rows: Vec<u32>,
+    pub points: Vec<f64>,
+    pub back: Back,
+}
+
+/// For each simplex of a list, the cache indices of the new vertices of its cofacets known
+/// to hold another crossed simplex of S already (the cofacets it was found through): the
+/// pivot there would only name a known simplex, so they are skipped.
+#[derive(Default)]
+pub(crate) struct Back {
+    /// `vertices[end[i - 1]..end[i]]` belong to simplex i.
+    end: Vec<u32>,
+    vertices: Vec<u32>,
+}
+
+impl Back {
+    /// The list of simplex i.
+    pub(super) fn of(&self, i: usize) -> &[u32] {
+        if self.end.is_empty() {
+            return &[];
+        }
+        let start = if i == 0 { 0 } else { self.end[i - 1] as usize };
+        &self.vertices[start..self.end[i] as usize]
+    }
+
+    /// Adds the next simplex's list.
+    pub(super) fn push_list(&mut self, vertices: &[u32]) {
+        self.vertices.extend_from_slice(vertices);
+        self.end_list();
+    }
+
+    /// Adds a vertex to the list being built.
+    pub(super) fn push_vertex(&mut self, v: u32) {
+        self.vertices.push(v);
+    }
+
+    /// Ends the list being built.
+    pub(super) fn end_list(&mut self) {
+        self.end.push(self.vertices.len() as u32);
+    }
+
+    /// Keeps simplex i's list (call in order).
+    pub fn push_from(&mut self, other: &Back, i: usize) {
+        self.vertices.extend_from_slice(other.of(i));
+        self.end.push(self.vertices.len() as u32);
+    }
+}
+
+/// The simplices a level starts from (a range of S) with their vertex-cache rows
+/// (k + 1 each) and their way back.
+pub(crate) struct Frontier {
+    pub range: Range<usize>,
+    pub rows: Vec<u32>,
+    pub back: Back,
+}
+
+/// Runs `f` on consecutive ranges covering `0..len`, about four per thread and at least
+/// `min_chunk` items each, in parallel when there is more than one; returns the results
+/// in order.
+pub(crate) fn par_ranges<T: Send>(
+    len: usize,
+    min_chunk: usize,
+    f: impl Fn(Range<usize>) -> T + Sync,
+) -> Vec<T> {
+    let chunk = len
+        .div_ceil(4 * rayon::current_num_threads())
+        .max(min_chunk)
+        .max(1);
+    let parts = len.div_ceil(chunk);
+    if parts <= 1 {
+        return vec![f(0..len)];
+    }
+    (0..parts)
+        .into_par_iter()
+        .map(|c| f(c * chunk..((c + 1) * chunk).min(len)))
+        .collect()
+}
+
+/// Sorts, in parallel when it pays.
+pub(crate) fn sort<T: Ord + Send>(v: &mut [T]) {
+    if v.len() < PAR_SORT_MIN {
+        v.sort_unstable();
+    } else {
+        v.par_sort_unstable();
+    }
+}
+
+/// Sorts a concatenation of sorted runs (merging them), in parallel when it pays.
+pub(crate) fn sort_runs<T: Ord + Send>(v: &mut [T]) {
+    if v.len() < PAR_SORT_MIN {
+        v.sort();
+    } else {
+        v.par_sort();
+    }
+}
