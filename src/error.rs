@@ -6,6 +6,7 @@ use crate::MAX_DIM;
 
 /// Everything that can go wrong in isomesh, as one typed error.
 #[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
 pub enum Error {
     /// An ambient dimension outside 1..=MAX_DIM.
     #[error("ambient dimension {0} is not supported: isomesh handles 1 to {MAX_DIM}")]
@@ -57,6 +58,15 @@ pub enum Error {
     /// A trace or scan that cannot run as asked (no seed, seed off M, box too large...).
     #[error("trace: {0}")]
     Trace(String),
+    /// Work stopped by the cancel flag (Ctrl-C, a signal); the message says what stopped
+    /// and what was kept.
+    #[error("{0}")]
+    Interrupted(String),
+    /// The device certified a verdict that the CPU's exact arithmetic contradicts: a bound
+    /// on the device's floats did not hold, so none of its verdicts can be trusted (a bug
+    /// to report, or a device that does not round as its specification allows).
+    #[error("a device bound does not hold: {0}")]
+    DeviceBound(String),
     /// No usable GPU, or a GPU operation that failed.
     #[error("gpu: {0}")]
     Gpu(String),

@@ -469,3 +469,20 @@ fn f_vanishing_on_a_region_is_an_error() {
     .unwrap();
     assert!(m.scan().is_ok());
 }
+
+/// A complex stopped by its cancel flag is the typed interruption, and a later call, not
+/// cancelled, builds it.
+#[test]
+fn a_cancelled_complex_is_an_interruption_and_can_be_built_later() {
+    let torus = Mesher::preset("torus", &[])
+        .unwrap()
+        .edge(0.2)
+        .trace()
+        .unwrap();
+    match torus.complex_cancellable(&AtomicBool::new(true)) {
+        Err(Error::Interrupted(m)) => assert!(m.contains("interrupted"), "{m}"),
+        other => panic!("not an interruption: {:?}", other.map(|c| c.counts())),
+    }
+    let t = torus.topology().unwrap();
+    assert_eq!(t.euler_characteristic, 0);
+}

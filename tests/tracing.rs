@@ -7,10 +7,11 @@ use isomesh::cpu::solve::Status;
 use isomesh::expr::{preset, EquationSystem, ImplicitFunction, Problem};
 use isomesh::trace::scan::candidates::{Candidates, BASE};
 use isomesh::trace::{
-    exhaustive, scan_grid, trace, CpuOracle, Oracle, Sample, ScanGrid, StopReason, TraceOptions,
+    exhaustive, scan_grid, trace, CpuOracle, Decisions, Oracle, Sample, ScanGrid, StopReason,
+    TraceOptions,
 };
 use isomesh::triangulation::{Simplex, Triangulation};
-use isomesh::Error;
+use isomesh::{Error, Result};
 
 /// Preset `name` with `params`, at longest edge `edge`.
 fn problem(name: &str, params: &[(&str, f64)], edge: f64) -> Problem {
@@ -898,4 +899,67 @@ fn the_scan_grid_holds_exactly_the_vertices_near_its_box() {
             grid.len()
         );
     }
+}
+
+/// An oracle whose device certifies every candidate crossed: the CPU's values, taken as
+/// exact, contradict it.
+struct LyingDevice<'f>(CpuOracle<'f>);
+
+impl Oracle for LyingDevice<'_> {
+    fn name(&self) -> String {
+        "lying device".into()
+    }
+    fn eval_vertices(&self, t: &Triangulation, lattice: &[i32], v: &mut [f64]) -> Result<()> {
+        self.0.eval_vertices(t, lattice, v)
+    }
+    fn decide(
+        &self,
+        values: &[f64],
+        simplices: &[u32],
+        status: &mut [Status],
+        lambda: &mut [f64],
+    ) -> Result<Decisions> {
+        self.0.decide(values, simplices, status, lambda)
+    }
+    fn certified_values(&self) -> bool {
+        true
+    }
+    fn eval_certified(&self, t: &Triangulation, lattice: &[i32], out: &mut [f64]) -> Result<()> {
+        let mut v = vec![0.0; out.len() / 2];
+        self.0.eval_vertices(t, lattice, &mut v)?;
+        for (pair, x) in out.chunks_exact_mut(2).zip(v) {
+            pair.copy_from_slice(&[x, 0.0]);
+        }
+        Ok(())
+    }
+    fn decide_certified(
+        &self,
+        _: &[f64],
+        _: &[f64],
+        _: &[u32],
+        verdicts: &mut [u32],
+    ) -> Result<()> {
+        verdicts.fill(isomesh::cpu::certificate::CROSSED);
+        Ok(())
+    }
+}
+
+/// A device verdict that the CPU's exact decision contradicts stops the scan with the typed
+/// error that says a device bound does not hold, not with a mesh built on it.
+#[test]
+fn a_device_verdict_the_cpu_contradicts_is_a_device_bound_error() {
+    // Codimension 2: a triangle whose vertex signs admit a zero need not be crossed.
+    let p = preset("flat-torus", &[]).unwrap();
+    let tri = Triangulation::coxeter(4).edge(0.4).build().unwrap();
+    let opts = TraceOptions {
+        bbox: Some(vec![[-1.2, 1.2]; 4]),
+        ..TraceOptions::default()
+    };
+    let lying = LyingDevice(CpuOracle::new(&p.system));
+    match exhaustive(&p.system, &tri, &lying, &opts) {
+        Err(Error::DeviceBound(m)) => assert!(m.contains("does not hold"), "{m}"),
+        other => panic!("not a device-bound error: {:?}", other.map(|s| s.len())),
+    }
+    // The same scan with the CPU's own verdicts works.
+    assert!(exhaustive(&p.system, &tri, &CpuOracle::new(&p.system), &opts).is_ok());
 }

@@ -33,7 +33,9 @@ pub(crate) fn to_py(e: isomesh::Error) -> PyErr {
             }
         }
         E::Output(m) => PyOSError::new_err(shown(&m)),
-        e @ (E::Gpu(_) | E::Wgsl(_)) => PyRuntimeError::new_err(shown(&e.to_string())),
+        e @ (E::Gpu(_) | E::Wgsl(_) | E::DeviceBound(_) | E::Interrupted(_)) => {
+            PyRuntimeError::new_err(shown(&e.to_string()))
+        }
         e => PyValueError::new_err(shown(&e.to_string())),
     }
 }

@@ -204,7 +204,7 @@ fn outcome(
     };
     let stopped = &m.sample().stats.stopped;
     if let Some(sig) = signal {
-        return Err(Error::Trace(format!(
+        return Err(Error::Interrupted(format!(
             "stopped by {}; {}, the report says complete: false",
             signals::name(sig),
             kept(n)

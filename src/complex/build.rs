@@ -89,7 +89,9 @@ fn raw_levels<const W: usize>(
     let mut defects = Vec::new();
     for j in 1..=d - k {
         if cancel.is_some_and(|c| c.load(Ordering::Relaxed)) {
-            return Err(Error::Trace("interrupted".into()));
+            return Err(Error::Interrupted(
+                "the cell complex was interrupted".into(),
+            ));
         }
         let cj = KeyCodec::new(d, k + j, bits)?;
         // The pairs are the peak: refuse up front rather than exhaust memory.

@@ -242,7 +242,7 @@ impl Manifold {
                 "nothing was found: there is no complex to build".into(),
             ));
         }
-        let interrupted = || Error::Trace("the cell complex was interrupted".into());
+        let interrupted = || Error::Interrupted("the cell complex was interrupted".into());
         let built = self.in_pool(|| {
             let c = Complex::build_cancellable(
                 &self.sample,

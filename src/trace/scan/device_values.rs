@@ -162,7 +162,7 @@ pub(super) fn decide(
 /// The error when the CPU contradicts a crossing the device certified: a value bound did
 /// not hold, so the device's other verdicts cannot be trusted either.
 fn contradiction(i: usize, cpu: &str) -> Error {
-    Error::Trace(format!(
+    Error::DeviceBound(format!(
         "the device certified candidate {i} of a scan batch as crossed, but the CPU's \
          values make it {cpu}: a bound of the device's values of f does not hold (rerun \
          without device values, and report this as a bug)"

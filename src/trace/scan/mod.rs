@@ -219,7 +219,9 @@ fn decide_batch<const W: usize>(
 /// An error when the cancel flag (Ctrl-C) is set: for steps that have nothing to keep.
 pub(super) fn cancelled(ctx: &TraceContext) -> Result<()> {
     if ctx.interrupted() {
-        return Err(Error::Trace("interrupted".into()));
+        return Err(Error::Interrupted(
+            "the exhaustive scan was interrupted".into(),
+        ));
     }
     Ok(())
 }
