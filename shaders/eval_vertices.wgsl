@@ -6,18 +6,11 @@
 // input: A (DIM x DIM, row-major), then b (DIM), then count rows of DIM lattice coordinates.
 // values: count rows of OUTS values.
 
-struct Params {
-    count: u32,
-    row_stride: u32,
-    _pad1: u32,
-    _pad2: u32,
-}
-
 @group(0) @binding(0) var<storage, read> input: array<real>;
 @group(0) @binding(1) var<storage, read_write> values: array<real>;
 @group(0) @binding(2) var<uniform> params: Params;
 
-@compute @workgroup_size(64)
+@compute @workgroup_size(WORKGROUP)
 fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let i = gid.x + gid.y * params.row_stride;
     if (i >= params.count) {

@@ -14,13 +14,6 @@
 // found: the number of candidates (may exceed the capacity: the host then runs again).
 // out: per candidate, K + 1 vertex indices, then the K corner sets S_1 < .. < S_K.
 
-struct Params {
-    count: u32,
-    row_stride: u32,
-    _pad1: u32,
-    _pad2: u32,
-}
-
 @group(0) @binding(0) var<storage, read> input: array<u32>;
 @group(0) @binding(1) var<storage, read_write> found: array<atomic<u32>>;
 @group(0) @binding(2) var<storage, read_write> out: array<u32>;
@@ -208,7 +201,7 @@ fn scan_cube(cube: u32) {
     }
 }
 
-@compute @workgroup_size(64)
+@compute @workgroup_size(WORKGROUP)
 fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let i = gid.x + gid.y * params.row_stride;
     if (i >= params.count) {

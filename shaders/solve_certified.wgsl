@@ -7,19 +7,12 @@
 // bounds of the same entries. lambda: N values per simplex (x = R e_1). flags: 0 crossed,
 // 1 outside, 2 uncertain.
 
-struct Params {
-    count: u32,
-    row_stride: u32,
-    _pad1: u32,
-    _pad2: u32,
-}
-
 @group(0) @binding(0) var<storage, read> input: array<real>;
 @group(0) @binding(1) var<storage, read_write> lambda: array<real>;
 @group(0) @binding(2) var<storage, read_write> flags: array<u32>;
 @group(0) @binding(3) var<uniform> params: Params;
 
-@compute @workgroup_size(64)
+@compute @workgroup_size(WORKGROUP)
 fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let s = gid.x + gid.y * params.row_stride;
     if (s >= params.count) {

@@ -412,16 +412,17 @@ fn medit(w: &mut impl Write, mesh: &Mesh) -> io::Result<()> {
     writeln!(w, "End")
 }
 
-fn vtu(w: &mut impl Write, mesh: &Mesh) -> io::Result<()> {
-    let c = mesh.complex;
-    let d = c.ambient_dim();
-    let n = mesh.vertex_count();
-    // (VTK cell type, vertex lists)
-    let (kind, cells): (u8, Vec<&[u32]>) = match c.dim() {
+/// The VTK cell type of the mesh's cells (line, polygon, tetrahedron) and their vertex lists.
+fn vtk_cells<'m>(mesh: &'m Mesh) -> (u8, Vec<&'m [u32]>) {
+    match mesh.complex.dim() {
         1 => (3, mesh.edges().collect()),
         2 => (7, mesh.polygons().collect()),
         _ => (10, mesh.tetrahedra.iter().map(|t| &t[..]).collect()),
-    };
+    }
+}
+
+/// A VTU file up to its piece's opening tag, text and binary alike.
+fn vtu_opening(w: &mut impl Write, mesh: &Mesh, cells: usize) -> io::Result<()> {
     writeln!(w, "<?xml version=\"1.0\"?>\n<!-- {} -->", mesh.header())?;
     writeln!(
         w,
@@ -430,9 +431,17 @@ fn vtu(w: &mut impl Write, mesh: &Mesh) -> io::Result<()> {
     )?;
     writeln!(
         w,
-        "<Piece NumberOfPoints=\"{n}\" NumberOfCells=\"{}\">",
-        cells.len()
-    )?;
+        "<Piece NumberOfPoints=\"{}\" NumberOfCells=\"{cells}\">",
+        mesh.vertex_count()
+    )
+}
+
+fn vtu(w: &mut impl Write, mesh: &Mesh) -> io::Result<()> {
+    let c = mesh.complex;
+    let d = c.ambient_dim();
+    let n = mesh.vertex_count();
+    let (kind, cells) = vtk_cells(mesh);
+    vtu_opening(w, mesh, cells.len())?;
     writeln!(
         w,
         "<PointData>\n<DataArray type=\"Float64\" Name=\"coordinates\" \
@@ -495,11 +504,7 @@ fn vtu_binary(w: &mut impl Write, mesh: &Mesh) -> io::Result<()> {
     let c = mesh.complex;
     let d = c.ambient_dim();
     let n = mesh.vertex_count();
-    let (kind, cells): (u8, Vec<&[u32]>) = match c.dim() {
-        1 => (3, mesh.edges().collect()),
-        2 => (7, mesh.polygons().collect()),
-        _ => (10, mesh.tetrahedra.iter().map(|t| &t[..]).collect()),
-    };
+    let (kind, cells) = vtk_cells(mesh);
     let links: usize = cells.iter().map(|c| c.len()).sum();
     // Indices as Int32 where they fit (half the size), else Int64.
     let (int, width) = if links < i32::MAX as usize {
@@ -538,17 +543,7 @@ fn vtu_binary(w: &mut impl Write, mesh: &Mesh) -> io::Result<()> {
         offset += 8 + bytes;
         s
     };
-    writeln!(w, "<?xml version=\"1.0\"?>\n<!-- {} -->", mesh.header())?;
-    writeln!(
-        w,
-        "<VTKFile type=\"UnstructuredGrid\" version=\"1.0\" byte_order=\"LittleEndian\" \
-         header_type=\"UInt64\">\n<UnstructuredGrid>"
-    )?;
-    writeln!(
-        w,
-        "<Piece NumberOfPoints=\"{n}\" NumberOfCells=\"{}\">",
-        cells.len()
-    )?;
+    vtu_opening(w, mesh, cells.len())?;
     writeln!(w, "<PointData>\n{}\n{}\n</PointData>", tag(0), tag(1))?;
     writeln!(w, "<Points>\n{}\n</Points>", tag(2))?;
     writeln!(w, "<Cells>\n{}\n{}\n{}\n</Cells>", tag(3), tag(4), tag(5))?;

@@ -8,6 +8,18 @@ use crate::expr::ast::{Op1, Op2};
 use crate::expr::certified::{lattice_factor, Accuracy, Rules};
 use crate::expr::program::{Node, Program};
 
+/// What every compute stage starts with: the uniform `Params` of a dispatch.
+const STAGE_WGSL: &str = include_str!("../../shaders/stage.wgsl");
+
+/// Threads per workgroup of every stage: the host dispatches by it, and
+/// [`stage_prelude`] gives it to the shaders.
+pub const WORKGROUP: u32 = 64;
+
+/// The prelude of every compute stage: `WORKGROUP` and `Params` ([`STAGE_WGSL`]).
+pub fn stage_prelude() -> String {
+    format!("const WORKGROUP: u32 = {WORKGROUP}u;\n{STAGE_WGSL}")
+}
+
 /// The batch-evaluation compute shader; the emitted prelude supplies `real`, `DIM`, `OUTS`
 /// and `isomesh_f`.
 pub const EVAL_VERTICES_WGSL: &str = include_str!("../../shaders/eval_vertices.wgsl");
@@ -191,6 +203,7 @@ pub fn eval_shader(prog: &Program, p: Precision) -> Result<String> {
         src.push_str(MATH_F64_WGSL);
     }
     src.push_str(&emit_function(prog, "isomesh_f", p)?);
+    src.push_str(&stage_prelude());
     src.push_str(EVAL_VERTICES_WGSL);
     validate(&src, p)?;
     Ok(src)
@@ -342,6 +355,7 @@ pub fn certified_shader(prog: &Program, p: Precision) -> Result<String> {
     src.push_str(&certified_primitives(p));
     src.push_str(CERTIFIED_WGSL);
     src.push_str(&emit_certified_function(prog, "isomesh_fc", p)?);
+    src.push_str(&stage_prelude());
     src.push_str(EVAL_CERTIFIED_WGSL);
     validate(&src, p)?;
     Ok(src)

@@ -255,6 +255,16 @@ impl Manifold {
         cancel: &AtomicBool,
         phase: &(dyn Fn(&str) + Sync),
     ) -> Delivery {
+        // The run's pool writes too: its threads, not new ones, make the mesh.
+        self.in_pool(|| self.deliver_in_pool(plan, cancel, phase))
+    }
+
+    fn deliver_in_pool(
+        &self,
+        plan: &OutputPlan,
+        cancel: &AtomicBool,
+        phase: &(dyn Fn(&str) + Sync),
+    ) -> Delivery {
         let mut out = Delivery::default();
         let mut failed = Vec::new();
         self.write_samples(plan, phase, &mut out, &mut failed);

@@ -261,19 +261,8 @@ impl<'a, const W: usize> Engine<'a, W> {
     /// Counts the decisions `v` on the candidates `rows`, reached as `how` says, and looks
     /// at degenerate ones for a region where f vanishes.
     pub(super) fn count(&mut self, v: &Verdicts, how: Decisions, rows: &[u32]) {
-        let m = v.status.len() as u64;
-        self.stats.exact_decisions += how.exact;
-        self.stats.oracle_calls += m;
-        self.stats.device_decisions += how.on_device;
-        self.stats.cpu_decisions += m - how.on_device;
         let before = self.stats.degenerate;
-        for s in &v.status {
-            match s {
-                Status::Degenerate => self.stats.degenerate += 1,
-                Status::NonFinite => self.stats.non_finite += 1,
-                _ => {}
-            }
-        }
+        self.stats.count_decisions(&v.status, how);
         if self.stats.degenerate > before && self.stats.zero_region.is_none() {
             let (ctx, verts) = (&self.ctx, &self.verts);
             let coords = |i: usize, x: &mut [f64]| {

@@ -238,6 +238,23 @@ pub struct TraceStats {
 }
 
 impl TraceStats {
+    /// Counts a batch of decisions: a status per simplex, reached as `how` says.
+    pub(crate) fn count_decisions(&mut self, status: &[crate::cpu::solve::Status], how: Decisions) {
+        use crate::cpu::solve::Status;
+        let m = status.len() as u64;
+        self.oracle_calls += m;
+        self.exact_decisions += how.exact;
+        self.device_decisions += how.on_device;
+        self.cpu_decisions += m - how.on_device;
+        for s in status {
+            match s {
+                Status::Degenerate => self.degenerate += 1,
+                Status::NonFinite => self.non_finite += 1,
+                _ => {}
+            }
+        }
+    }
+
     /// Why a run that found no crossed simplex, and was not stopped, found none: a sentence
     /// saying what to change. `exhaustive`: it was a scan; `seeds_given`: it was traced from
     /// seeds the caller gave.

@@ -9,10 +9,8 @@ use std::time::Instant;
 use super::GpuOracle;
 use crate::error::{Error, Result};
 use crate::gpu::context::Gpu;
-use crate::gpu::wgsl::Precision;
+use crate::gpu::wgsl::{Precision, WORKGROUP};
 
-/// Threads per workgroup in both shaders.
-pub(super) const WORKGROUP: u32 = 64;
 /// Workgroups per dispatch row (the limit per dimension).
 const MAX_GROUPS: u32 = 65_535;
 

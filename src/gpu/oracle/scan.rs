@@ -9,7 +9,7 @@ use rayon::prelude::*;
 use super::device::{pipeline, Stage};
 use super::GpuOracle;
 use crate::error::{Error, Result};
-use crate::gpu::wgsl::{validate, Precision};
+use crate::gpu::wgsl::{stage_prelude, validate, Precision};
 use crate::trace::scan::candidates::{self, pass_mask, Candidates, BASE};
 use crate::trace::ScanGrid;
 
@@ -30,10 +30,11 @@ pub fn scan_shader(d: usize, k: usize) -> Result<String> {
         )));
     }
     let src = format!(
-        "const D: u32 = {d}u;\nconst K: u32 = {k}u;\nconst KP1: u32 = {kp1}u;\n\
+        "{stage}const D: u32 = {d}u;\nconst K: u32 = {k}u;\nconst KP1: u32 = {kp1}u;\n\
          const CORNERS: u32 = {corners}u;\nconst HALF: u32 = {half}u;\n\
          const MASK: u32 = {mask}u;\nconst BASE: u32 = {base}u;\nconst RUN: u32 = {SCAN_RUN}u;\n\
          {SCAN_WGSL}",
+        stage = stage_prelude(),
         kp1 = k + 1,
         corners = 1u32 << d,
         half = 1u32 << (d - 1),

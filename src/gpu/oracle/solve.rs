@@ -16,7 +16,7 @@ use crate::cpu::certificate::{Margins, BIG, MAX_CONTRACTION, MAX_N};
 use crate::cpu::solve::{filter_verdict, scaled_rows, Status};
 use crate::error::{Error, Result};
 use crate::expr::certified::DeviceReal;
-use crate::gpu::wgsl::{validate, Precision};
+use crate::gpu::wgsl::{stage_prelude, validate, Precision};
 use crate::trace::{CpuOracle, Decisions, Oracle};
 
 /// The solve shader, before its prelude.
@@ -75,9 +75,10 @@ pub(super) fn solve_prelude(k: usize, p: Precision) -> Result<String> {
         Precision::F64 => p.literal(v),
     };
     Ok(format!(
-        "alias real = {ty};\nconst N: u32 = {n}u;\nconst NN: u32 = {nn}u;\nconst EPS: real = {eps};\n\
+        "{stage}alias real = {ty};\nconst N: u32 = {n}u;\nconst NN: u32 = {nn}u;\nconst EPS: real = {eps};\n\
          const GAMMA: real = {gamma};\nconst GROW: real = {grow};\nconst TINY: real = {tiny};\n\
          const MAX_CONTRACTION: real = {maxc};\nconst BIG: real = {big};\n",
+        stage = stage_prelude(),
         ty = p.ty(),
         nn = n * n,
         eps = p.literal(eps)?,
@@ -107,19 +108,29 @@ impl GpuOracle<'_> {
                 flags.extend(bytemuck::pod_collect_to_vec::<u8, u32>(&res[1]));
                 continue;
             }
-            let pending = self.submit(
-                Stage::Solve,
-                &self.solve,
-                &self.encode_reals(part),
-                c,
-                &[c * n * rs, c * 4],
-                false,
-            )?;
-            let res = self.finish(pending)?;
-            lam.extend(self.decode_reals(&res[0]));
-            flags.extend(bytemuck::pod_collect_to_vec::<u8, u32>(&res[1]));
+            let input = self.encode_reals(part);
+            self.solve_chunk(Stage::Solve, &self.solve, &input, c, &mut flags, &mut lam)?;
         }
         Ok((flags, lam))
+    }
+
+    /// Runs a solve stage (`Solve` or `SolveCertified`) on the `c` simplices encoded in
+    /// `input`, waits, and appends their verdicts and lambdas.
+    pub(super) fn solve_chunk(
+        &self,
+        stage: Stage,
+        pipeline: &wgpu::ComputePipeline,
+        input: &[u8],
+        c: usize,
+        flags: &mut Vec<u32>,
+        lam: &mut Vec<f64>,
+    ) -> Result<()> {
+        let outputs = [c * (self.k + 1) * self.real_size(), c * 4];
+        let pending = self.submit(stage, pipeline, input, c, &outputs, false)?;
+        let res = self.finish(pending)?;
+        lam.extend(self.decode_reals(&res[0]));
+        flags.extend(bytemuck::pod_collect_to_vec::<u8, u32>(&res[1]));
+        Ok(())
     }
 
     #[doc(hidden)] // a stage alone, for tests and benchmarks

@@ -62,17 +62,8 @@ impl GpuOracle<'_> {
                 input.extend_from_slice(&l[i * per..(i + 1) * per]);
                 input.extend_from_slice(&e[i * per..(i + 1) * per]);
             }
-            let pending = self.submit(
-                Stage::SolveCertified,
-                pipe,
-                &self.encode_reals(&input),
-                c,
-                &[c * n * rs, c * 4],
-                false,
-            )?;
-            let res = self.finish(pending)?;
-            lam.extend(self.decode_reals(&res[0]));
-            flags.extend(bytemuck::pod_collect_to_vec::<u8, u32>(&res[1]));
+            let input = self.encode_reals(&input);
+            self.solve_chunk(Stage::SolveCertified, pipe, &input, c, &mut flags, &mut lam)?;
         }
         Ok((flags, lam))
     }

@@ -21,7 +21,7 @@ use crate::cpu::certificate::{CROSSED, OUTSIDE};
 use crate::cpu::solve::Status;
 use crate::error::{Error, Result};
 use crate::trace::oracle::decide_on_cpu;
-use crate::trace::{TraceContext, TraceStats};
+use crate::trace::{Decisions, TraceContext, TraceStats};
 
 /// The sign code of a vertex whose component values are known within bounds: bit 2c unless
 /// component c is certainly > 0, bit 2c + 1 unless it is certainly < 0 (both for an
@@ -119,9 +119,6 @@ pub(super) fn decide(
         .flat_map(|&i| rows[i * n..(i + 1) * n].iter().copied())
         .collect();
     stats.cpu_vertex_evaluations += cpu.ensure(ctx, grid, &open_rows)?;
-    stats.oracle_calls += m as u64;
-    stats.device_decisions += (m - open.len()) as u64;
-    stats.cpu_decisions += open.len() as u64;
     // The CPU's own candidates: those whose CPU sign codes admit a zero.
     let mask = pass_mask(k);
     let mut kept = Vec::with_capacity(open.len());
@@ -140,22 +137,20 @@ pub(super) fn decide(
         .collect();
     let mut st = vec![Status::Outside; kept.len()];
     let mut lam = vec![0.0; kept.len() * n];
-    stats.exact_decisions += decide_on_cpu(k, &cpu.values, &sub, &mut st, &mut lam);
+    let exact = decide_on_cpu(k, &cpu.values, &sub, &mut st, &mut lam);
     for ((&o, &s), l) in kept.iter().zip(&st).zip(lam.chunks_exact(n)) {
         let i = open[o];
         if verdicts[i] == CROSSED && !s.crossed() {
             return Err(contradiction(i, &format!("{s:?}")));
-        }
-        match s {
-            Status::Degenerate => stats.degenerate += 1,
-            Status::NonFinite => stats.non_finite += 1,
-            _ => {}
         }
         status[i] = s;
         if s.crossed() {
             lambda[i * n..(i + 1) * n].copy_from_slice(l);
         }
     }
+    // The device's OUTSIDE verdicts stand; the open candidates were decided on the CPU.
+    let on_device = (m - open.len()) as u64;
+    stats.count_decisions(&status[..m], Decisions { exact, on_device });
     Ok(())
 }
 

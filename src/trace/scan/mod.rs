@@ -150,17 +150,7 @@ fn decide_batch<const W: usize>(
         let how = ctx
             .oracle
             .decide(grid.values(), rows, &mut status, &mut lambda)?;
-        stats.exact_decisions += how.exact;
-        stats.oracle_calls += m as u64;
-        stats.device_decisions += how.on_device;
-        stats.cpu_decisions += m as u64 - how.on_device;
-        for s in &status {
-            match s {
-                Status::Degenerate => stats.degenerate += 1,
-                Status::NonFinite => stats.non_finite += 1,
-                _ => {}
-            }
-        }
+        stats.count_decisions(&status, how);
     }
     if stats.zero_region.is_none() && status.contains(&Status::Degenerate) {
         stats.zero_region = crate::trace::checks::zero_region(
