@@ -26,8 +26,10 @@
 //! - [`expr`]: the equation language: parser, derivatives, batch evaluation, spec files and
 //!   presets.
 //! - [`trace`]: manifold tracing and the exhaustive scan, behind the [`trace::Oracle`] trait.
-//! - [`cpu`]: the CPU oracle and the a-posteriori certificate of its verdicts; [`emulate`]:
-//!   device floats that round as adversarially as the WGSL and Vulkan specifications allow.
+//! - With the `internals` feature (for the crate's own tests, not a stable API): `cpu`, the
+//!   CPU oracle's kernels and the a-posteriori certificate of its verdicts; `emulate`,
+//!   device floats that round as adversarially as the WGSL and Vulkan specifications allow;
+//!   `linalg`; `expr::certified`, certified evaluation; and the GPU oracle's test hooks.
 //! - `gpu` (feature `gpu`): the GPU oracle (wgpu, WGSL). [`complex`]: the cell complex and its
 //!   topology. [`export`]: files and pictures. [`report`]: the report's keys.
 //!
@@ -56,14 +58,23 @@
 #[doc(hidden)]
 pub mod bench;
 pub mod complex;
+#[cfg(feature = "internals")]
 pub mod cpu;
+#[cfg(not(feature = "internals"))]
+pub(crate) mod cpu;
+#[cfg(feature = "internals")]
 pub mod emulate;
+#[cfg(not(feature = "internals"))]
+pub(crate) mod emulate;
 pub mod error;
 pub mod export;
 pub mod expr;
 #[cfg(feature = "gpu")]
 pub mod gpu;
+#[cfg(feature = "internals")]
 pub mod linalg;
+#[cfg(not(feature = "internals"))]
+pub(crate) mod linalg;
 pub mod memory;
 pub mod mesher;
 pub mod report;

@@ -480,7 +480,7 @@ fn a_cancelled_complex_is_an_interruption_and_can_be_built_later() {
         .trace()
         .unwrap();
     match torus.complex_cancellable(&AtomicBool::new(true)) {
-        Err(Error::Interrupted(m)) => assert!(m.contains("interrupted"), "{m}"),
+        Err(isomesh::Error::Interrupted(m)) => assert!(m.contains("interrupted"), "{m}"),
         other => panic!("not an interruption: {:?}", other.map(|c| c.counts())),
     }
     let t = torus.topology().unwrap();

@@ -27,9 +27,7 @@ pub mod pivot;
 pub mod solve;
 #[cfg(test)]
 mod solve_adversarial;
-/// The expression compiler, at its old path: it lives in [`crate::expr::program`].
-#[doc(hidden)]
-pub use crate::expr::program;
 
 pub mod eval_certified;
+#[cfg(any(test, feature = "internals"))]
 pub mod eval_vertices;

@@ -205,6 +205,7 @@ pub fn exact_decision(values: &[f64], k: usize, lambda: &mut [f64]) -> Status {
 /// The exact signs of lambda = L^-1 e_1 (no tie rule): -1, 0 or 1 per entry, or `None`
 /// when L is singular. A cheaper reference than [`exact_decision`] (one right-hand side)
 /// for claims that hold strictly: crossed means every sign is 1.
+#[cfg(any(test, feature = "internals"))]
 pub fn exact_lambda_signs(values: &[f64], k: usize) -> Option<Vec<i8>> {
     let (det, y) = exact_solve(values, k, 1)?;
     let s = |v: &BigInt| v.is_positive() as i8 - v.is_negative() as i8;

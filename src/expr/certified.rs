@@ -289,6 +289,7 @@ impl<R: DeviceReal> Cv<R> {
 
     /// The sign the CPU's value certainly has: 1 or -1, or 0 when it is not certain (the
     /// bound reaches zero, or is unknown).
+    #[cfg(any(test, feature = "internals"))]
     pub fn sign(&self, acc: &Accuracy) -> i32 {
         if !self.known(acc) {
             0
@@ -328,6 +329,7 @@ impl<R: DeviceReal> Rules<R> {
     }
 
     /// The accuracy these rules assume.
+    #[cfg(any(test, feature = "internals"))]
     pub fn accuracy(&self) -> &Accuracy {
         &self.acc
     }

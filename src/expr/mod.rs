@@ -3,7 +3,10 @@
 //! (the GPU module's `wgsl`); spec files and presets are written in it.
 
 pub mod ast;
+#[cfg(feature = "internals")]
 pub mod certified;
+#[cfg(not(feature = "internals"))]
+pub(crate) mod certified;
 pub mod parser;
 pub mod presets;
 pub mod program;

@@ -4,7 +4,7 @@
 //! What makes S the CPU's S: the shader only takes decisions that its error bound certifies.
 //! In f64 it keeps certain crossings (with their lambda) and certain misses; in f32 it keeps
 //! only certain misses, so every crossing point is computed by the CPU in f64. Everything else
-//! is re-decided on the CPU by [`Decider`](crate::cpu::solve::Decider), exactly where needed.
+//! is re-decided on the CPU by `cpu::solve::Decider`, exactly where needed.
 //!
 //! A batch goes through in chunks, pipelined: while the device solves one chunk, the host
 //! packs the next and settles the previous one. Each round trip checks its buffers out of
@@ -18,7 +18,7 @@
 //! ([`GpuOracle::eval_stage`]) matches its CPU twin only to a few ulps, not bit for bit, so
 //! tracing does not take its values. The certified vertex shader
 //! ([`GpuOracle::certified_stage`]) returns each value with a bound on its distance to the
-//! CPU's ([`crate::expr::certified`]): the building block for deciding on the device only
+//! CPU's (`expr::certified`): the building block for deciding on the device only
 //! what those bounds make certain.
 
 use std::ops::Range;
@@ -214,7 +214,7 @@ impl<'f> GpuOracle<'f> {
         self.phased.store(on, Ordering::Relaxed);
     }
 
-    #[doc(hidden)] // for tests
+    #[cfg(feature = "internals")]
     /// Caps the bytes of one storage binding (at most the adapter's limit and 1 GiB, the
     /// default): batches are split finer. Results are the same; for bounding device memory
     /// and for testing the splitting.
@@ -234,13 +234,13 @@ impl<'f> GpuOracle<'f> {
     /// With `on`, the exhaustive scan evaluates f on the device with certified bounds, takes
     /// the device's certified verdicts, and evaluates f on the CPU only at the vertices of
     /// the simplices the device found crossed or could not decide
-    /// ([`crate::trace::scan::device_values`]). S, its order and its points are the same
+    /// (`trace::scan::device_values`). S, its order and its points are the same
     /// either way. Off by default.
     pub fn set_device_values(&self, on: bool) {
         self.device_values.store(on, Ordering::Relaxed);
     }
 
-    #[doc(hidden)] // for tests
+    #[cfg(feature = "internals")]
     /// With `Some(seed)`, every certified value the device returns is replaced by the CPU's
     /// value plus t times its bound, t in (-1, 1) drawn from the seed and the vertex (half
     /// the time within 2^-10 of +-1): a device that rounds otherwise, within the claimed
@@ -250,7 +250,7 @@ impl<'f> GpuOracle<'f> {
             .store(seed.map_or(0, |s| s | 1 << 63), Ordering::Relaxed);
     }
 
-    #[doc(hidden)] // for tests
+    #[cfg(feature = "internals")]
     /// With `Some(seed)`, the solve, the certified solve and the certified values are
     /// computed on the CPU by the shaders' twins in the arithmetic of an emulated conforming
     /// device ([`crate::emulate`]: every operation rounded, and every built-in function

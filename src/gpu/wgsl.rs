@@ -13,10 +13,10 @@ const STAGE_WGSL: &str = include_str!("../../shaders/stage.wgsl");
 
 /// Threads per workgroup of every stage: the host dispatches by it, and
 /// [`stage_prelude`] gives it to the shaders.
-pub const WORKGROUP: u32 = 64;
+pub(crate) const WORKGROUP: u32 = 64;
 
 /// The prelude of every compute stage: `WORKGROUP` and `Params` ([`STAGE_WGSL`]).
-pub fn stage_prelude() -> String {
+pub(crate) fn stage_prelude() -> String {
     format!("const WORKGROUP: u32 = {WORKGROUP}u;\n{STAGE_WGSL}")
 }
 
@@ -25,7 +25,7 @@ pub fn stage_prelude() -> String {
 pub const EVAL_VERTICES_WGSL: &str = include_str!("../../shaders/eval_vertices.wgsl");
 /// f64 elementary functions (SPIR-V has no f64 exp, log or trigonometry).
 pub const MATH_F64_WGSL: &str = include_str!("../../shaders/math_f64.wgsl");
-/// The rules of certified evaluation (twin of [`Rules`]).
+/// The rules of certified evaluation (twin of `expr::certified::Rules`).
 pub const CERTIFIED_WGSL: &str = include_str!("../../shaders/certified.wgsl");
 /// The certified vertex-evaluation compute shader.
 pub const EVAL_CERTIFIED_WGSL: &str = include_str!("../../shaders/eval_certified.wgsl");
@@ -275,7 +275,7 @@ fn certified_constants(p: Precision, acc: &Accuracy) -> Result<String> {
 
 /// `fn NAME(x: array<Cv, D>) -> array<Cv, K>`: the program's certified outputs, one `let`
 /// per DAG node in the CPU's order, each a rule of `shaders/certified.wgsl` (the twin of
-/// [`crate::expr::certified::certified_eval`]).
+/// `expr::certified::certified_eval`).
 pub fn emit_certified_function(prog: &Program, name: &str, p: Precision) -> Result<String> {
     let (d, k) = (prog.dim(), prog.outputs().max(1));
     let mut s = String::new();

@@ -35,6 +35,8 @@ use std::time::Instant;
 
 use serde::Serialize;
 
+pub use crate::cpu::certificate::{CROSSED, OUTSIDE, UNCERTAIN};
+pub use crate::cpu::solve::Status;
 pub use oracle::{CpuOracle, Decisions, Oracle};
 pub use region::{box_slack, coord_bits, in_box, in_box_closed, lattice_bounds, Domain};
 use sample::sample_from;

@@ -73,7 +73,7 @@ pub trait Oracle: Sync {
 
     /// The exhaustive scan's candidate k-simplices in the cubes based at the grid vertices
     /// `cubes`, in order of base, then chain. Every backend must give exactly
-    /// [`candidates::candidates`], which is the default.
+    /// `trace::scan::candidates::candidates`, which is the default.
     fn scan_candidates(&self, grid: &ScanGrid, cubes: Range<usize>) -> Result<Candidates> {
         Ok(candidates::candidates(grid, cubes))
     }
@@ -99,10 +99,9 @@ pub trait Oracle: Sync {
 
     /// Certified verdicts on k-simplices whose vertex values are known only within bounds
     /// (`values` and `bounds`: rows of k; infinite bounds unknown), per row of `simplices`
-    /// (k + 1 vertex indices): [`CROSSED`](crate::cpu::certificate::CROSSED) or
-    /// [`OUTSIDE`](crate::cpu::certificate::OUTSIDE) where that verdict holds for all values
-    /// within the bounds, else [`UNCERTAIN`](crate::cpu::certificate::UNCERTAIN), the
-    /// default.
+    /// (k + 1 vertex indices): [`CROSSED`](super::CROSSED) or [`OUTSIDE`](super::OUTSIDE)
+    /// where that verdict holds for all values within the bounds, else
+    /// [`UNCERTAIN`](super::UNCERTAIN), the default.
     fn decide_certified(
         &self,
         values: &[f64],

@@ -15,7 +15,7 @@ use crate::gpu::wgsl::{validate, Precision};
 pub const SOLVE_CERTIFIED_WGSL: &str = include_str!("../../../shaders/solve_certified.wgsl");
 
 /// The certified solve shader for k-simplices in precision `p`, validated by naga; its
-/// margins are [`Margins::device`](crate::cpu::certificate::Margins::device) for p, rounded up.
+/// margins are `cpu::certificate::Margins::device` for p, rounded up.
 pub fn solve_certified_shader(k: usize, p: Precision) -> Result<String> {
     let src = format!(
         "{prelude}{GAUSS_JORDAN_WGSL}{CERTIFY_WGSL}{SOLVE_CERTIFIED_WGSL}",

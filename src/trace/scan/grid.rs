@@ -81,8 +81,8 @@ impl ScanGrid {
         &self.bounds
     }
 
-    /// The sign code of every vertex ([`crate::trace::scan::candidates::sign_code`], with
-    /// [`BASE`](crate::trace::scan::candidates::BASE) set on the vertices whose cube is scanned).
+    /// The sign code of every vertex (`trace::scan::candidates::sign_code`, with `BASE` set
+    /// on the vertices whose cube is scanned).
     pub fn codes(&self) -> &[u32] {
         &self.codes
     }

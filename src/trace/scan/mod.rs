@@ -6,13 +6,19 @@
 //! vertices are v0 + e_S for a chain of subsets S of {1..d}) and has diameter <= edge. So f is
 //! evaluated once at the lattice vertices within 2 edge of the box ([`ScanGrid`]); the
 //! oracle generates the candidate simplices of the cubes based within `edge` of it (those
-//! whose vertices' signs admit a zero: [`candidates`], or on a GPU `shaders/scan.wgsl`)
+//! whose vertices' signs admit a zero: `candidates`, or on a GPU `shaders/scan.wgsl`)
 //! and decides them, in batches of cubes sized to about 2^20 candidates.
 
 use rayon::prelude::*;
 
+#[cfg(feature = "internals")]
 pub mod candidates;
+#[cfg(not(feature = "internals"))]
+pub(crate) mod candidates;
+#[cfg(feature = "internals")]
 pub mod device_values;
+#[cfg(not(feature = "internals"))]
+pub(crate) mod device_values;
 mod grid;
 
 pub use candidates::Candidates;
