@@ -547,7 +547,7 @@ fn the_eval_vertices_shader_matches_its_cpu_twin() {
         }
         for prec in precisions(&g) {
             let o = GpuOracle::new(g.clone(), &p.system, prec).unwrap();
-            let got = o.eval_stage(&tri, &lattice).unwrap();
+            let got = o.eval_vertices_stage(&tri, &lattice).unwrap();
             assert_eq!(got.len(), twin.len());
             // What holds on any conforming device: its f64 operations may be as coarse as
             // f32's (the values reach no output; lavapipe's agree to about 4e-16).
@@ -790,10 +790,10 @@ fn one_gpu_oracle_serves_several_threads_at_once() {
 }
 
 #[test]
-fn the_certified_shader_bounds_the_cpu_values_and_matches_its_twin() {
+fn the_eval_certified_shader_matches_its_cpu_twin() {
     use isomesh::cpu::eval_certified::eval_lattice_certified;
     use isomesh::expr::{ImplicitFunction, PRESETS};
-    let Some(g) = gpu("the_certified_shader_bounds_the_cpu_values_and_matches_its_twin") else {
+    let Some(g) = gpu("the_eval_certified_shader_matches_its_cpu_twin") else {
         return;
     };
     for info in PRESETS {
@@ -815,7 +815,7 @@ fn the_certified_shader_bounds_the_cpu_values_and_matches_its_twin() {
         for prec in precisions(&g) {
             let o = GpuOracle::new(g.clone(), &p.system, prec).unwrap();
             let acc = o.precision().accuracy();
-            let got = o.certified_stage(&tri, &lattice).unwrap();
+            let got = o.eval_certified_stage(&tri, &lattice).unwrap();
             assert_eq!(got.len(), 2 * n * k);
             let twin = match o.precision() {
                 Precision::F64 => {
@@ -909,7 +909,7 @@ fn math_f64_functions_are_close_to_the_cpus() {
             .unwrap();
         let lattice: Vec<i32> = (0..=n).flat_map(|i| [i, 0]).collect();
         let o = GpuOracle::new(g.clone(), &system, Some(Precision::F64)).unwrap();
-        let got = o.eval_stage(&tri, &lattice).unwrap();
+        let got = o.eval_vertices_stage(&tri, &lattice).unwrap();
         let mut worst = 0.0f64;
         for (u, dev) in lattice.chunks_exact(2).zip(&got) {
             let mut x = [0.0; 2];
@@ -934,11 +934,11 @@ fn math_f64_functions_are_close_to_the_cpus() {
 /// value bounds of every size, and both against the exact decision of the values (which lie
 /// within the bounds).
 #[test]
-fn the_certified_solve_shader_matches_its_cpu_twin() {
+fn the_solve_certified_shader_matches_its_cpu_twin() {
     use isomesh::cpu::certificate::{pack_rows, CertifiedSolver, CROSSED, OUTSIDE, UNCERTAIN};
     use isomesh::cpu::solve::exact_decision;
     use isomesh::expr::certified::DeviceReal;
-    let Some(g) = gpu("the_certified_solve_shader_matches_its_cpu_twin") else {
+    let Some(g) = gpu("the_solve_certified_shader_matches_its_cpu_twin") else {
         return;
     };
     fn twin<R: DeviceReal>(k: usize, l: &[f64], e: &[f64]) -> (Vec<u32>, Vec<f64>) {

@@ -921,7 +921,7 @@ impl Oracle for LyingDevice<'_> {
     ) -> Result<Decisions> {
         self.0.decide(values, simplices, status, lambda)
     }
-    fn certified_values(&self) -> bool {
+    fn device_values(&self) -> bool {
         true
     }
     fn eval_certified(&self, t: &Triangulation, lattice: &[i32], out: &mut [f64]) -> Result<()> {

@@ -347,7 +347,7 @@ fn eval_table(args: &BenchArgs, gpu: Option<&Gpu>, precisions: &[Precision]) -> 
         let Some(g) = gpu else { continue };
         for &prec in precisions {
             let o = GpuOracle::new(g.clone(), &p.system, Some(prec))?;
-            let (s, values) = timed(args.repeats, || o.eval_stage(&tri, &lattice))?;
+            let (s, values) = timed(args.repeats, || o.eval_vertices_stage(&tri, &lattice))?;
             let worst = values
                 .iter()
                 .zip(&cpu_values)
@@ -365,7 +365,7 @@ fn eval_table(args: &BenchArgs, gpu: Option<&Gpu>, precisions: &[Precision]) -> 
             );
             // With bounds: the share of values whose bound is usable, and the CPU's value
             // must lie within every such bound.
-            let (s, pairs) = timed(args.repeats, || o.certified_stage(&tri, &lattice))?;
+            let (s, pairs) = timed(args.repeats, || o.eval_certified_stage(&tri, &lattice))?;
             let acc = prec.accuracy();
             let mut known = 0usize;
             for (pair, c) in pairs.chunks_exact(2).zip(&cpu_values) {

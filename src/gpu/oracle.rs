@@ -15,9 +15,9 @@
 //! by the CPU's values. With the same values, the f64 shader's lambda equals the CPU's where
 //! the device rounds division and does not contract (lavapipe: bit-identical); elsewhere
 //! points may differ by a few ulps, never the decisions. The vertex shader
-//! ([`GpuOracle::eval_stage`]) matches its CPU twin only to a few ulps, not bit for bit, so
+//! ([`GpuOracle::eval_vertices_stage`]) matches its CPU twin only to a few ulps, not bit for bit, so
 //! tracing does not take its values. The certified vertex shader
-//! ([`GpuOracle::certified_stage`]) returns each value with a bound on its distance to the
+//! ([`GpuOracle::eval_certified_stage`]) returns each value with a bound on its distance to the
 //! CPU's (`expr::certified`): the building block for deciding on the device only
 //! what those bounds make certain.
 
@@ -298,12 +298,12 @@ impl Oracle for GpuOracle<'_> {
         self.decide_pipelined(values, simplices, status, lambda)
     }
 
-    fn certified_values(&self) -> bool {
+    fn device_values(&self) -> bool {
         self.device_values.load(Ordering::Relaxed)
     }
 
     fn eval_certified(&self, tri: &Triangulation, lattice: &[i32], out: &mut [f64]) -> Result<()> {
-        let got = self.certified_stage(tri, lattice)?;
+        let got = self.eval_certified_stage(tri, lattice)?;
         let big = self.precision.accuracy().big;
         for (o, g) in out.chunks_exact_mut(2).zip(got.chunks_exact(2)) {
             let (v, e) = (g[0], g[1]);

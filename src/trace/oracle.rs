@@ -81,14 +81,14 @@ pub trait Oracle: Sync {
     /// Whether the exhaustive scan takes f's values from the device with bounds
     /// ([`Oracle::eval_certified`], [`Oracle::decide_certified`]) and evaluates f on the CPU
     /// only where the device cannot decide. False, the default, for the CPU.
-    fn certified_values(&self) -> bool {
+    fn device_values(&self) -> bool {
         false
     }
 
     /// Certified values of f at lattice vertices: `lattice` holds n rows of d, `out` gets n
     /// rows of k pairs (value, bound) such that the value of [`Oracle::eval_vertices`] lies
     /// within the bound of the value (an infinite bound: unknown). Only where
-    /// [`Oracle::certified_values`]; the default says so.
+    /// [`Oracle::device_values`]; the default says so.
     fn eval_certified(&self, tri: &Triangulation, lattice: &[i32], out: &mut [f64]) -> Result<()> {
         let _ = (tri, lattice, out);
         Err(crate::error::Error::Trace(format!(

@@ -20,8 +20,8 @@ const MAX_GROUPS: u32 = 65_535;
 pub(super) enum Stage {
     Solve,
     Scan,
-    Eval,
-    Certified,
+    EvalVertices,
+    EvalCertified,
     SolveCertified,
 }
 pub(super) const STAGES: usize = 5;

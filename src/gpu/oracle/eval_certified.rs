@@ -14,11 +14,11 @@ impl GpuOracle<'_> {
     /// `tri`, as rows of k pairs (value, bound): the CPU's f64 value of each component lies
     /// within the bound of the value (see [`crate::expr::certified`]; a bound at or above
     /// the precision's [`Accuracy::big`](crate::expr::certified::Accuracy) means unknown).
-    pub fn certified_stage(&self, tri: &Triangulation, lattice: &[i32]) -> Result<Vec<f64>> {
+    pub fn eval_certified_stage(&self, tri: &Triangulation, lattice: &[i32]) -> Result<Vec<f64>> {
         if let Some(seed) = self.emulated() {
             return self.emulated_certified(seed, tri, lattice);
         }
         let pipe = self.f_pipeline(&self.certified, certified_shader, "eval_certified")?;
-        self.lattice_stage(Stage::Certified, pipe, tri, lattice, 2 * self.k)
+        self.lattice_stage(Stage::EvalCertified, pipe, tri, lattice, 2 * self.k)
     }
 }

@@ -37,9 +37,9 @@ impl GpuOracle<'_> {
     /// `lattice` (rows of d) of `tri`, mapped to R^d inside the shader; rows of k values.
     /// Tracing does not use it (see the module documentation): it is the building block of
     /// GPU-side scans, and measured by `isomesh bench`.
-    pub fn eval_stage(&self, tri: &Triangulation, lattice: &[i32]) -> Result<Vec<f64>> {
+    pub fn eval_vertices_stage(&self, tri: &Triangulation, lattice: &[i32]) -> Result<Vec<f64>> {
         let eval = self.f_pipeline(&self.eval, eval_shader, "eval_vertices")?;
-        self.lattice_stage(Stage::Eval, eval, tri, lattice, self.k)
+        self.lattice_stage(Stage::EvalVertices, eval, tri, lattice, self.k)
     }
 
     /// Runs a shader over lattice vertices (`shaders/eval_vertices.wgsl` and

@@ -1,4 +1,4 @@
-//! The exhaustive scan with f's values from a device ([`Oracle::certified_values`]): the grid
+//! The exhaustive scan with f's values from a device ([`Oracle::device_values`]): the grid
 //! holds the device's values with bounds that contain the CPU's values, sign codes admit
 //! both signs wherever a bound reaches 0 (so the candidates are a superset of the CPU's),
 //! and the device certifies verdicts that hold for every value within the bounds. The CPU
@@ -6,7 +6,7 @@
 //! decide, keeps of those exactly its own candidates, and decides them from its own values.
 //! So S, its order and its points are the CPU backend's, whatever the device's rounding.
 //!
-//! [`Oracle::certified_values`]: crate::trace::Oracle::certified_values
+//! [`Oracle::device_values`]: crate::trace::Oracle::device_values
 
 // `!(a > b)` is meant: a NaN value or bound must give both signs.
 #![allow(clippy::neg_cmp_op_on_partial_ord)]

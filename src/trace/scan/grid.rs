@@ -70,7 +70,7 @@ impl ScanGrid {
     }
 
     /// f at every vertex, rows of k: the CPU's values, or with an oracle that has
-    /// [`certified_values`](crate::trace::Oracle::certified_values), the device's.
+    /// [`device_values`](crate::trace::Oracle::device_values), the device's.
     pub fn values(&self) -> &[f64] {
         &self.values
     }
@@ -164,7 +164,7 @@ impl ScanGrid {
 /// Bytes per grid vertex: f's k values (and their bounds, with device values), the sign
 /// code and the coordinates while they are evaluated.
 fn vertex_bytes(ctx: &TraceContext) -> u64 {
-    let per_value = if ctx.oracle.certified_values() { 16 } else { 8 };
+    let per_value = if ctx.oracle.device_values() { 16 } else { 8 };
     ctx.k as u64 * per_value + 12
 }
 
@@ -470,7 +470,7 @@ pub(crate) fn build(ctx: &TraceContext, bbox: &[[f64; 2]]) -> Result<ScanGrid> {
              smaller box or a larger edge"
         )));
     }
-    let on_device = ctx.oracle.certified_values();
+    let on_device = ctx.oracle.device_values();
     grid.values = vec![0.0; total * k];
     if on_device {
         grid.bounds = vec![0.0; total * k];

@@ -68,7 +68,7 @@ pub(crate) fn scan<const W: usize>(ctx: &TraceContext, bbox: &[[f64; 2]]) -> Res
         }
         g => g?,
     };
-    let on_device = ctx.oracle.certified_values();
+    let on_device = ctx.oracle.device_values();
     let mut cpu_values = on_device.then(device_values::CpuValues::default);
     let mut stats = TraceStats {
         vertices: grid.len() as u64,
