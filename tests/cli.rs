@@ -466,6 +466,36 @@ fn the_gpu_backend_reports_itself_and_matches_the_cpu() {
             "{precision}: the samples differ"
         );
     }
+    // --device-values reaches the oracle through the library's driver: the scan's values
+    // come from the device, and the sample is the CPU's.
+    let scan = |extra: &[&str], name: &str| {
+        let mut args = vec![
+            "trace",
+            "--preset",
+            "flat-torus",
+            "--exhaustive",
+            "--box",
+            "-1.1,1.1",
+            "--edge",
+            "0.3",
+            "--out",
+        ];
+        let csv = format!("{name}.csv");
+        let json = format!("{name}.json");
+        args.extend([csv.as_str(), "--report", json.as_str()]);
+        args.extend_from_slice(extra);
+        let o = isomesh(&dir, &args);
+        assert!(o.status.success(), "{name}: {}", stderr(&o));
+        (
+            std::fs::read_to_string(dir.join(&csv)).unwrap(),
+            report(&dir, &json),
+        )
+    };
+    let (cpu, _) = scan(&[], "scan-cpu");
+    let (dev, r) = scan(&["--backend", "gpu", "--device-values"], "scan-dev");
+    assert!(r["device_vertex_evaluations"].as_u64().unwrap() > 0, "{r}");
+    assert!(r["device_decisions"].as_u64().unwrap() > 0, "{r}");
+    assert_eq!(cpu, dev, "the device-value scan's sample differs");
 }
 
 #[test]

@@ -9,7 +9,7 @@ use std::sync::Mutex;
 
 use isomesh::cpu::solve::{exact_lambda_signs, Status};
 use isomesh::expr::{preset, Problem, Spec};
-use isomesh::gpu::{Gpu, GpuOracle, Precision};
+use isomesh::gpu::{Gpu, GpuOptions, GpuOracle, Precision};
 use isomesh::trace::scan::candidates::candidates;
 use isomesh::trace::scan::candidates::Candidates;
 use isomesh::trace::{
@@ -362,13 +362,17 @@ fn gpu_traces_take_the_cpu_verdicts_lambda_and_rim() {
                 .into_iter()
                 .chain((i % 2 == 0).then_some(Some(i as u64)))
             {
-                let oracle = GpuOracle::new(reopen(), &p.system, precision).unwrap();
-                oracle.emulate_device(emulate);
                 // Every other case decides its levels in slices of 7 frontier simplices, naming
                 // the next slice while the device decides one; the others in one batch (the
                 // default).
                 let slice = if i % 2 == 1 { 7 } else { 0 };
-                oracle.set_level_slice(slice);
+                let options = GpuOptions {
+                    precision,
+                    level_slice: slice,
+                    device_values: false,
+                };
+                let oracle = GpuOracle::with_options(reopen(), &p.system, options).unwrap();
+                oracle.emulate_device(emulate);
                 let shadow = Shadow::new(&oracle, &p.system);
                 let gpu = run(&p, &shadow);
                 let what = format!(
@@ -1257,8 +1261,12 @@ fn gpu_scans_with_device_values_evaluate_on_the_cpu_only_what_the_device_left_op
         let n = isomesh::expr::ImplicitFunction::codim(&p.system) + 1;
         for &precision in &modes {
             let perturb = (c % 2 == 1).then_some(c as u64);
-            let oracle = GpuOracle::new(reopen(), &p.system, precision).unwrap();
-            oracle.set_device_values(true);
+            let options = GpuOptions {
+                precision,
+                device_values: true,
+                ..GpuOptions::default()
+            };
+            let oracle = GpuOracle::with_options(reopen(), &p.system, options).unwrap();
             oracle.perturb_device_values(perturb);
             let grid = scan_grid(&p.system, &tri, &oracle, &opts).unwrap();
             let cands = candidates(&grid, 0..grid.len());
@@ -1300,8 +1308,12 @@ fn device_value_scan(
     perturb: Option<u64>,
     emulate: Option<u64>,
 ) -> Sample {
-    let oracle = GpuOracle::new(reopen(), &p.system, precision).unwrap();
-    oracle.set_device_values(true);
+    let options = GpuOptions {
+        precision,
+        device_values: true,
+        ..GpuOptions::default()
+    };
+    let oracle = GpuOracle::with_options(reopen(), &p.system, options).unwrap();
     oracle.perturb_device_values(perturb);
     oracle.emulate_device(emulate);
     let opts = TraceOptions {

@@ -14,7 +14,7 @@ use isomesh::export::write_atomic;
 use super::text::{say, shown};
 use isomesh::export::safe::{check_target, FileId};
 use isomesh::expr::ImplicitFunction;
-use isomesh::gpu::{Gpu, GpuOracle, Precision};
+use isomesh::gpu::{Gpu, GpuOptions, GpuOracle, Precision};
 use isomesh::trace::{CpuOracle, Oracle, TraceStats};
 use isomesh::{Error, Result};
 use serde_json::{json, Value};
@@ -512,7 +512,11 @@ fn scan_table(args: &BenchArgs, gpu: Option<&Gpu>) -> Result<Vec<Value>> {
             let bbox = case.bbox(p.dim());
             let o = GpuOracle::new(g.clone(), &p.system, None)?;
             let (gpu_s, plain) = timed(args.repeats, || scan_case(&p, &bbox, &o))?;
-            o.set_device_values(true);
+            let with_values = GpuOptions {
+                device_values: true,
+                ..GpuOptions::default()
+            };
+            let o = GpuOracle::with_options(g.clone(), &p.system, with_values)?;
             let (values_s, dev) = timed(args.repeats, || scan_case(&p, &bbox, &o))?;
             let st = &dev.stats;
             let same =

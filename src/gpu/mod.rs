@@ -6,5 +6,5 @@ pub mod oracle;
 pub mod wgsl;
 
 pub use context::{adapters, AdapterSummary, Gpu};
-pub use oracle::{GpuOracle, GpuStats};
+pub use oracle::{GpuOptions, GpuOracle, GpuStats};
 pub use wgsl::Precision;

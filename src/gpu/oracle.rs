@@ -22,7 +22,7 @@
 //! what those bounds make certain.
 
 use std::ops::Range;
-use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::{Mutex, OnceLock};
 
 use super::context::Gpu;
@@ -94,8 +94,8 @@ pub struct GpuOracle<'f> {
     scan_density: AtomicU64,
     /// Most bytes per storage binding ([`GpuOracle::limit_binding`]).
     binding_limit: AtomicU64,
-    /// Frontier simplices per slice of a trace level ([`GpuOracle::set_level_slice`]).
-    level_slice: AtomicUsize,
+    /// Frontier simplices per slice of a trace level ([`GpuOptions::level_slice`]).
+    level_slice: usize,
     solved: AtomicU64,
     rechecked: AtomicU64,
     contradicted: AtomicU64,
@@ -106,8 +106,8 @@ pub struct GpuOracle<'f> {
     readback_ns: AtomicU64,
     /// Split each round trip into timed, synchronous steps (for benchmarks).
     phased: AtomicBool,
-    /// The exhaustive scan takes f's values from the device ([`GpuOracle::set_device_values`]).
-    device_values: AtomicBool,
+    /// The exhaustive scan takes f's values from the device ([`GpuOptions::device_values`]).
+    device_values: bool,
     /// Test hook: device values moved within their bounds (0: off, else a seed).
     perturb: AtomicU64,
     /// Test hook: the floating-point stages emulated on the CPU (0: off, else a seed).
@@ -116,13 +116,46 @@ pub struct GpuOracle<'f> {
     buffers: Mutex<[Vec<Option<wgpu::Buffer>>; STAGES]>,
 }
 
+/// How a [`GpuOracle`] works, fixed when it is made. The mesh does not depend on any of it.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct GpuOptions {
+    /// Shader precision; `None` picks f64 where the adapter has it, else f32.
+    pub precision: Option<Precision>,
+    /// Frontier simplices per slice of a trace level: wider levels are decided slice by
+    /// slice, the next slice named on the CPU while the device decides one
+    /// ([`Oracle::level_slice`]). 0, the default, decides every level as one batch: it
+    /// measured no gain on lavapipe, whose device work runs on the CPU's cores; slices are
+    /// meant for a hardware GPU whose waits are long.
+    pub level_slice: usize,
+    /// The exhaustive scan evaluates f on the device with certified bounds, takes the
+    /// device's certified verdicts, and evaluates f on the CPU only at the vertices of the
+    /// simplices the device found crossed or could not decide (`trace::scan::device_values`).
+    /// Off by default.
+    pub device_values: bool,
+}
+
 impl<'f> GpuOracle<'f> {
-    /// An oracle for `f` on `gpu`; `precision` None picks f64 where the adapter has it.
+    /// An oracle for `f` on `gpu` with the default options but `precision` (`None` picks f64
+    /// where the adapter has it).
     pub fn new(
         gpu: Gpu,
         f: &'f dyn ImplicitFunction,
         precision: Option<Precision>,
     ) -> Result<Self> {
+        let options = GpuOptions {
+            precision,
+            ..GpuOptions::default()
+        };
+        Self::with_options(gpu, f, options)
+    }
+
+    /// An oracle for `f` on `gpu` that works as `options` say.
+    pub fn with_options(
+        gpu: Gpu,
+        f: &'f dyn ImplicitFunction,
+        options: GpuOptions,
+    ) -> Result<Self> {
+        let precision = options.precision;
         let has_f64 = gpu.adapter.shader_f64;
         let precision = match precision {
             Some(Precision::F64) if !has_f64 => {
@@ -149,7 +182,7 @@ impl<'f> GpuOracle<'f> {
             solve_certified: OnceLock::new(),
             scan_density: AtomicU64::new(1 << 12),
             binding_limit: AtomicU64::new(1 << 30),
-            level_slice: AtomicUsize::new(0),
+            level_slice: options.level_slice,
             solved: AtomicU64::new(0),
             rechecked: AtomicU64::new(0),
             contradicted: AtomicU64::new(0),
@@ -159,7 +192,7 @@ impl<'f> GpuOracle<'f> {
             compute_ns: AtomicU64::new(0),
             readback_ns: AtomicU64::new(0),
             phased: AtomicBool::new(false),
-            device_values: AtomicBool::new(false),
+            device_values: options.device_values,
             perturb: AtomicU64::new(0),
             emulate: AtomicU64::new(0),
             buffers: Mutex::new(Default::default()),
@@ -222,24 +255,6 @@ impl<'f> GpuOracle<'f> {
         self.binding_limit.store(bytes.max(256), Ordering::Relaxed);
     }
 
-    /// Frontier simplices per slice of a trace level: wider levels are decided slice by
-    /// slice, the next slice named on the CPU while the device decides one
-    /// ([`Oracle::level_slice`]). 0, the default, decides every level as one batch. Results
-    /// are the same. Off by default because it measured no gain on lavapipe, whose device
-    /// work runs on the CPU's cores; it is meant for a hardware GPU whose waits are long.
-    pub fn set_level_slice(&self, simplices: usize) {
-        self.level_slice.store(simplices, Ordering::Relaxed);
-    }
-
-    /// With `on`, the exhaustive scan evaluates f on the device with certified bounds, takes
-    /// the device's certified verdicts, and evaluates f on the CPU only at the vertices of
-    /// the simplices the device found crossed or could not decide
-    /// (`trace::scan::device_values`). S, its order and its points are the same
-    /// either way. Off by default.
-    pub fn set_device_values(&self, on: bool) {
-        self.device_values.store(on, Ordering::Relaxed);
-    }
-
     #[cfg(feature = "internals")]
     /// With `Some(seed)`, every certified value the device returns is replaced by the CPU's
     /// value plus t times its bound, t in (-1, 1) drawn from the seed and the vertex (half
@@ -278,7 +293,7 @@ impl Oracle for GpuOracle<'_> {
     }
 
     fn level_slice(&self) -> Option<usize> {
-        Some(self.level_slice.load(Ordering::Relaxed)).filter(|&s| s > 0)
+        Some(self.level_slice).filter(|&s| s > 0)
     }
 
     fn scan_candidates(&self, grid: &ScanGrid, cubes: Range<usize>) -> Result<Candidates> {
@@ -299,7 +314,7 @@ impl Oracle for GpuOracle<'_> {
     }
 
     fn device_values(&self) -> bool {
-        self.device_values.load(Ordering::Relaxed)
+        self.device_values
     }
 
     fn eval_certified(&self, tri: &Triangulation, lattice: &[i32], out: &mut [f64]) -> Result<()> {

@@ -270,7 +270,7 @@ impl Mesher {
 
     /// GPU backend: the exhaustive scan evaluates f on the device with certified bounds and
     /// the CPU only where the device cannot decide
-    /// ([`GpuOracle::set_device_values`](crate::gpu::GpuOracle::set_device_values)); the
+    /// ([`GpuOptions::device_values`](crate::gpu::GpuOptions::device_values)); the
     /// result is the same. Off by default.
     #[cfg(feature = "gpu")]
     pub fn device_values(mut self, on: bool) -> Self {
@@ -279,7 +279,7 @@ impl Mesher {
     }
 
     /// GPU backend: frontier simplices per slice of a trace level, `None` for whole levels
-    /// ([`GpuOracle::set_level_slice`](crate::gpu::GpuOracle::set_level_slice)); the result
+    /// ([`GpuOptions::level_slice`](crate::gpu::GpuOptions::level_slice)); the result
     /// is the same.
     #[cfg(feature = "gpu")]
     pub fn level_slice(mut self, simplices: Option<usize>) -> Self {
@@ -549,7 +549,7 @@ impl Mesher {
     /// The GPU oracle the backend asks for, or `None` for the CPU.
     #[cfg(feature = "gpu")]
     fn gpu_oracle(&self, warnings: &mut Vec<Warning>) -> Result<Option<crate::gpu::GpuOracle<'_>>> {
-        use crate::gpu::{Gpu, GpuOracle};
+        use crate::gpu::{Gpu, GpuOptions, GpuOracle};
         let f = &*self.function;
         let gpu = match self.backend {
             Backend::Cpu => return Ok(None),
@@ -581,12 +581,12 @@ impl Mesher {
                 }
             }
         };
-        let o = GpuOracle::new(gpu, f, self.precision)?;
-        o.set_device_values(self.device_values);
-        if let Some(slice) = self.level_slice {
-            o.set_level_slice(slice);
-        }
-        Ok(Some(o))
+        let options = GpuOptions {
+            precision: self.precision,
+            level_slice: self.level_slice.unwrap_or(0),
+            device_values: self.device_values,
+        };
+        GpuOracle::with_options(gpu, f, options).map(Some)
     }
 }
 
