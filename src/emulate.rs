@@ -12,8 +12,8 @@
 //!   the result of the operation just before it, a multiplication, takes the exact product
 //!   half the time.
 //! - Subnormal operands and results may be flushed to zero (sign kept): the emulator flips
-//!   a coin for each, results of division and the built-in functions included (comparisons
-//!   see the value unflushed).
+//!   a coin for each, results of division and the built-in functions included, and so do
+//!   the operands of a comparison (`<`, `==`: a subnormal may compare as zero).
 //! - `x / y`: within 2.5 ulp for |y| in [2^-126, 2^126], anything outside that range.
 //! - f32 `exp`: 3 + 2|x| ulp; `log`: 3 ulp outside [0.5, 2], absolute 2^-21 inside; `sin`
 //!   and `cos`: absolute 2^-11 on [-pi, pi]; `atan2`: 4096 ulp; `sqrt`: 1 / inverseSqrt
@@ -345,8 +345,22 @@ mod builtin {
 macro_rules! emulated {
     ($name:ident, $t:ty, $unit:expr, $spec:expr, $min:expr, $round:ident, $ulp:ident, $doc:literal) => {
         #[doc = $doc]
-        #[derive(Clone, Copy, Debug, PartialEq, PartialOrd)]
+        #[derive(Clone, Copy, Debug)]
         pub struct $name(pub $t);
+
+        /// A comparison of the operands as the device sees them: each subnormal flushed
+        /// to zero half the time.
+        impl PartialEq for $name {
+            fn eq(&self, other: &Self) -> bool {
+                self.op() == other.op()
+            }
+        }
+
+        impl PartialOrd for $name {
+            fn partial_cmp(&self, other: &Self) -> Option<std::cmp::Ordering> {
+                self.op().partial_cmp(&other.op())
+            }
+        }
 
         impl $name {
             fn op(self) -> f64 {
@@ -517,6 +531,19 @@ mod tests {
             .filter(|_| Emu32(tiny).add(Emu32(0.0)).0 == 0.0)
             .count();
         assert!(flushed > 20 && flushed < 180, "{flushed}");
+    }
+
+    #[test]
+    fn comparisons_flush_subnormal_operands_sometimes() {
+        seed(5);
+        let (tiny, zero) = (Emu32(f32::MIN_POSITIVE / 4.0), Emu32(0.0));
+        let as_zero = (0..200).filter(|_| tiny <= zero).count();
+        assert!(as_zero > 20 && as_zero < 180, "{as_zero}");
+        let tiny = Emu64(f64::MIN_POSITIVE / 4.0);
+        let equal = (0..200).filter(|_| tiny == Emu64(0.0)).count();
+        assert!(equal > 20 && equal < 180, "{equal}");
+        // A normal value compares as itself.
+        assert!((0..200).all(|_| Emu32(f32::MIN_POSITIVE) > zero));
     }
 
     #[test]
