@@ -13,7 +13,8 @@ use isomesh::gpu::{Gpu, GpuOptions, GpuOracle, Precision};
 use isomesh::trace::scan::candidates::candidates;
 use isomesh::trace::scan::candidates::Candidates;
 use isomesh::trace::{
-    exhaustive, scan_grid, trace, CpuOracle, Oracle, Sample, ScanGrid, TraceOptions,
+    exhaustive, scan_grid, trace, CpuOracle, Decide, DeviceValues, Evaluate, Oracle, Sample, Scan,
+    ScanGrid, TraceOptions,
 };
 use isomesh::triangulation::Triangulation;
 use rand::{Rng, SeedableRng};
@@ -138,13 +139,27 @@ impl Oracle for Shadow<'_> {
         self.dev.name()
     }
 
+    fn values(&self) -> &dyn Evaluate {
+        self
+    }
+
+    fn decisions(&self) -> &dyn Decide {
+        self
+    }
+
+    fn scans(&self) -> &dyn Scan {
+        self
+    }
+}
+
+impl Evaluate for Shadow<'_> {
     fn eval_vertices(
         &self,
         tri: &Triangulation,
         lattice: &[i32],
         values: &mut [f64],
     ) -> isomesh::Result<()> {
-        self.dev.eval_vertices(tri, lattice, values)?;
+        self.dev.values().eval_vertices(tri, lattice, values)?;
         let mut want = vec![0.0; values.len()];
         self.cpu.eval_vertices(tri, lattice, &mut want)?;
         let differ = values
@@ -155,7 +170,9 @@ impl Oracle for Shadow<'_> {
         self.log.lock().unwrap().values_differ += differ;
         Ok(())
     }
+}
 
+impl Decide for Shadow<'_> {
     fn decide(
         &self,
         values: &[f64],
@@ -163,7 +180,10 @@ impl Oracle for Shadow<'_> {
         status: &mut [Status],
         lambda: &mut [f64],
     ) -> isomesh::Result<isomesh::trace::Decisions> {
-        let exact = self.dev.decide(values, simplices, status, lambda)?;
+        let exact = self
+            .dev
+            .decisions()
+            .decide(values, simplices, status, lambda)?;
         let (m, n) = (status.len(), self.n);
         let (mut st, mut lam) = (vec![Status::Outside; m], vec![0.0; lambda.len()]);
         self.cpu.decide(values, simplices, &mut st, &mut lam)?;
@@ -178,11 +198,14 @@ impl Oracle for Shadow<'_> {
     }
 
     fn level_slice(&self) -> Option<usize> {
-        self.dev.level_slice()
+        self.dev.decisions().level_slice()
     }
+}
 
-    fn scan_candidates(&self, grid: &ScanGrid, cubes: Range<usize>) -> isomesh::Result<Candidates> {
-        let got = self.dev.scan_candidates(grid, cubes.clone())?;
+/// The device's candidates, checked; the CPU's values (no device values).
+impl Scan for Shadow<'_> {
+    fn candidates(&self, grid: &ScanGrid, cubes: Range<usize>) -> isomesh::Result<Candidates> {
+        let got = self.dev.scans().candidates(grid, cubes.clone())?;
         let want = candidates(grid, cubes);
         let mut log = self.log.lock().unwrap();
         log.scans += 1;
@@ -816,8 +839,13 @@ fn the_eval_certified_shader_matches_its_cpu_twin() {
             .eval_vertices(&tri, &lattice, &mut cpu)
             .unwrap();
         let (a, b) = tri.affine_map();
-        for prec in precisions(&g) {
+        // The adapter, then the stage emulated as any conforming device may compute it.
+        let runs = precisions(&g)
+            .into_iter()
+            .flat_map(|p| [(p, None), (p, Some(d as u64 + 3))]);
+        for (prec, emulate) in runs {
             let o = GpuOracle::new(g.clone(), &p.system, prec).unwrap();
+            o.emulate_device(emulate);
             let acc = o.precision().accuracy();
             let got = o.eval_certified_stage(&tri, &lattice).unwrap();
             assert_eq!(got.len(), 2 * n * k);
@@ -840,7 +868,8 @@ fn the_eval_certified_shader_matches_its_cpu_twin() {
                 known += 1;
                 assert!(
                     (c - v).abs() <= e,
-                    "{} {:?}: the CPU's {c} is not within {e:e} of the device's {v}",
+                    "{} {:?}, emulated {emulate:?}: the CPU's {c} is not within {e:e} of the \
+                     device's {v}",
                     info.name,
                     o.precision()
                 );
@@ -851,14 +880,15 @@ fn the_eval_certified_shader_matches_its_cpu_twin() {
                     (tv - v).abs() <= e + te
                         && e <= 2.0 * te + acc.tiny
                         && te <= 2.0 * e + acc.tiny,
-                    "{} {:?}: device ({v}, {e:e}) against twin ({tv}, {te:e})",
+                    "{} {:?}, emulated {emulate:?}: device ({v}, {e:e}) against twin ({tv}, \
+                     {te:e})",
                     info.name,
                     o.precision()
                 );
             }
             assert!(
                 known as f64 >= 0.95 * (n * k) as f64,
-                "{} {:?}: {known} of {} values have a bound",
+                "{} {:?}, emulated {emulate:?}: {known} of {} values have a bound",
                 info.name,
                 o.precision(),
                 n * k
@@ -974,23 +1004,28 @@ fn the_solve_certified_shader_matches_its_cpu_twin() {
                 _ => v.abs() * (-(rng.random_range(8..=50) as f64)).exp2(),
             })
             .collect();
-        for prec in precisions(&g) {
+        // The adapter, then the stage emulated as any conforming device may compute it.
+        let runs = precisions(&g)
+            .into_iter()
+            .flat_map(|p| [(p, None), (p, Some(k as u64 + 29))]);
+        for (prec, emulate) in runs {
             let f = isomesh::expr::ClosureFunction::new(k + 1, k, |_, o| o.fill(0.0)).unwrap();
             let o = GpuOracle::new(reopen(), &f, prec).unwrap();
-            let p = o.precision();
+            o.emulate_device(emulate);
+            let p = (o.precision(), emulate);
             let (mut l, mut e) = (vec![0.0; count * per], vec![0.0; count * per]);
             for i in 0..count {
                 let at = |j: usize, c: usize| i * per + j * k + c;
                 let (val, bnd) = (|j, c| values[at(j, c)], |j, c| bounds[at(j, c)]);
                 let (lo, eo) = (&mut l[i * per..][..per], &mut e[i * per..][..per]);
-                let ok = match p {
+                let ok = match p.0 {
                     Precision::F32 => pack_rows::<f32>(k, val, bnd, lo, eo),
                     Precision::F64 => pack_rows::<f64>(k, val, bnd, lo, eo),
                 };
                 assert!(ok);
             }
             let (flags, lambda) = o.solve_certified_stage(&l, &e).unwrap();
-            let (tflags, tlambda) = match p {
+            let (tflags, tlambda) = match p.0 {
                 Precision::F32 => twin::<f32>(k, &l, &e),
                 Precision::F64 => twin::<f64>(k, &l, &e),
             };

@@ -7,8 +7,8 @@ use isomesh::cpu::solve::Status;
 use isomesh::expr::{preset, EquationSystem, ImplicitFunction, Problem};
 use isomesh::trace::scan::candidates::{Candidates, BASE};
 use isomesh::trace::{
-    exhaustive, scan_grid, trace, CpuOracle, Decisions, Oracle, Sample, ScanGrid, StopReason,
-    TraceOptions,
+    exhaustive, scan_grid, trace, CpuOracle, Decide, DeviceValues, Evaluate, Oracle, Sample, Scan,
+    ScanGrid, StopReason, TraceOptions,
 };
 use isomesh::triangulation::{Simplex, Triangulation};
 use isomesh::{Error, Result};
@@ -456,14 +456,15 @@ impl Oracle for Probe<'_> {
     fn name(&self) -> String {
         self.inner.name()
     }
-    fn eval_vertices(
-        &self,
-        tri: &Triangulation,
-        lattice: &[i32],
-        values: &mut [f64],
-    ) -> isomesh::Result<()> {
-        self.inner.eval_vertices(tri, lattice, values)
+    fn values(&self) -> &dyn Evaluate {
+        &self.inner
     }
+    fn decisions(&self) -> &dyn Decide {
+        self
+    }
+}
+
+impl Decide for Probe<'_> {
     fn decide(
         &self,
         values: &[f64],
@@ -909,21 +910,24 @@ impl Oracle for LyingDevice<'_> {
     fn name(&self) -> String {
         "lying device".into()
     }
-    fn eval_vertices(&self, t: &Triangulation, lattice: &[i32], v: &mut [f64]) -> Result<()> {
-        self.0.eval_vertices(t, lattice, v)
+    fn values(&self) -> &dyn Evaluate {
+        &self.0
     }
-    fn decide(
-        &self,
-        values: &[f64],
-        simplices: &[u32],
-        status: &mut [Status],
-        lambda: &mut [f64],
-    ) -> Result<Decisions> {
-        self.0.decide(values, simplices, status, lambda)
+    fn decisions(&self) -> &dyn Decide {
+        &self.0
     }
-    fn device_values(&self) -> bool {
-        true
+    fn scans(&self) -> &dyn Scan {
+        self
     }
+}
+
+impl Scan for LyingDevice<'_> {
+    fn device_values(&self) -> Option<&dyn DeviceValues> {
+        Some(self)
+    }
+}
+
+impl DeviceValues for LyingDevice<'_> {
     fn eval_certified(&self, t: &Triangulation, lattice: &[i32], out: &mut [f64]) -> Result<()> {
         let mut v = vec![0.0; out.len() / 2];
         self.0.eval_vertices(t, lattice, &mut v)?;

@@ -211,7 +211,9 @@ impl OracleBatch {
         let mut status = vec![Status::Outside; m];
         let mut lambda = vec![0.0; m * (self.k + 1)];
         let (seconds, _) = timed(repeats, || {
-            oracle.decide(&self.values, &self.simplices, &mut status, &mut lambda)
+            oracle
+                .decisions()
+                .decide(&self.values, &self.simplices, &mut status, &mut lambda)
         })?;
         Ok((m as f64 / seconds, status, lambda))
     }

@@ -339,7 +339,7 @@ fn eval_table(args: &BenchArgs, gpu: Option<&Gpu>, precisions: &[Precision]) -> 
         let mut cpu_values = vec![0.0; args.count * k];
         let cpu = CpuOracle::new(&p.system);
         let (cpu_s, ()) = timed(args.repeats, || {
-            cpu.eval_vertices(&tri, &lattice, &mut cpu_values)
+            cpu.values().eval_vertices(&tri, &lattice, &mut cpu_values)
         })?;
         let cpu_rate = args.count as f64 / cpu_s;
         say!("| {name} | {d} | {k} | cpu | {cpu_rate:.3e} | 1 | |");

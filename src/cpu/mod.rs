@@ -18,6 +18,7 @@ macro_rules! unrolled {
 }
 pub(crate) use unrolled;
 
+pub mod batch;
 pub mod certificate;
 #[cfg(test)]
 mod certificate_fuzz;

@@ -32,7 +32,7 @@ use crate::error::{Error, Result};
 use crate::expr::ImplicitFunction;
 use crate::report::BackendInfo;
 use crate::trace::scan::candidates::{candidates, Candidates};
-use crate::trace::{CpuOracle, Decisions, Oracle, ScanGrid};
+use crate::trace::{CpuOracle, Decide, Decisions, DeviceValues, Evaluate, Oracle, Scan, ScanGrid};
 use crate::triangulation::Triangulation;
 
 mod device;
@@ -79,6 +79,8 @@ pub struct GpuStats {
 pub struct GpuOracle<'f> {
     gpu: Gpu,
     f: &'f dyn ImplicitFunction,
+    /// f's values at lattice vertices, which every decision starts from.
+    cpu: CpuOracle<'f>,
     k: usize,
     precision: Precision,
     solve: wgpu::ComputePipeline,
@@ -123,7 +125,7 @@ pub struct GpuOptions {
     pub precision: Option<Precision>,
     /// Frontier simplices per slice of a trace level: wider levels are decided slice by
     /// slice, the next slice named on the CPU while the device decides one
-    /// ([`Oracle::level_slice`]). 0, the default, decides every level as one batch: it
+    /// ([`crate::trace::Decide::level_slice`]). 0, the default, decides every level as one batch: it
     /// measured no gain on lavapipe, whose device work runs on the CPU's cores; slices are
     /// meant for a hardware GPU whose waits are long.
     pub level_slice: usize,
@@ -173,6 +175,7 @@ impl<'f> GpuOracle<'f> {
         Ok(GpuOracle {
             gpu,
             f,
+            cpu: CpuOracle::new(f),
             k,
             precision,
             solve,
@@ -282,27 +285,21 @@ impl Oracle for GpuOracle<'_> {
         format!("gpu: {}", self.gpu.adapter.name)
     }
 
-    fn eval_vertices(
-        &self,
-        tri: &Triangulation,
-        lattice: &[i32],
-        values: &mut [f64],
-    ) -> Result<()> {
-        // On the CPU: see the module documentation.
-        CpuOracle::new(self.f).eval_vertices(tri, lattice, values)
+    /// The CPU's values: see the module documentation.
+    fn values(&self) -> &dyn Evaluate {
+        &self.cpu
     }
 
-    fn level_slice(&self) -> Option<usize> {
-        Some(self.level_slice).filter(|&s| s > 0)
+    fn decisions(&self) -> &dyn Decide {
+        self
     }
 
-    fn scan_candidates(&self, grid: &ScanGrid, cubes: Range<usize>) -> Result<Candidates> {
-        if grid.dim() > MAX_GPU_SCAN_DIM {
-            return Ok(candidates(grid, cubes));
-        }
-        self.scan_stage(grid, cubes)
+    fn scans(&self) -> &dyn Scan {
+        self
     }
+}
 
+impl Decide for GpuOracle<'_> {
     fn decide(
         &self,
         values: &[f64],
@@ -313,10 +310,25 @@ impl Oracle for GpuOracle<'_> {
         self.decide_pipelined(values, simplices, status, lambda)
     }
 
-    fn device_values(&self) -> bool {
-        self.device_values
+    fn level_slice(&self) -> Option<usize> {
+        Some(self.level_slice).filter(|&s| s > 0)
+    }
+}
+
+impl Scan for GpuOracle<'_> {
+    fn candidates(&self, grid: &ScanGrid, cubes: Range<usize>) -> Result<Candidates> {
+        if grid.dim() > MAX_GPU_SCAN_DIM {
+            return Ok(candidates(grid, cubes));
+        }
+        self.scan_stage(grid, cubes)
     }
 
+    fn device_values(&self) -> Option<&dyn DeviceValues> {
+        self.device_values.then_some(self as &dyn DeviceValues)
+    }
+}
+
+impl DeviceValues for GpuOracle<'_> {
     fn eval_certified(&self, tri: &Triangulation, lattice: &[i32], out: &mut [f64]) -> Result<()> {
         let got = self.eval_certified_stage(tri, lattice)?;
         let big = self.precision.accuracy().big;

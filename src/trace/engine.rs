@@ -214,6 +214,7 @@ impl<'a, const W: usize> Engine<'a, W> {
         let mut vals = vec![0.0; keys.len() * k];
         self.ctx
             .oracle
+            .values()
             .eval_vertices(self.ctx.tri, &lattice, &mut vals)?;
         // Misses of the cache, deduplicated: all new.
         self.verts.insert_new_batch(keys.as_flattened())?;
@@ -251,10 +252,11 @@ impl<'a, const W: usize> Engine<'a, W> {
         let m = rows.len() / n;
         let mut status = vec![Status::Outside; m];
         let mut lambda = vec![0.0; m * n];
-        let exact = self
-            .ctx
-            .oracle
-            .decide(&self.values, rows, &mut status, &mut lambda)?;
+        let exact =
+            self.ctx
+                .oracle
+                .decisions()
+                .decide(&self.values, rows, &mut status, &mut lambda)?;
         Ok((Verdicts { status, lambda }, exact))
     }
 

@@ -352,12 +352,12 @@ impl<const W: usize> Engine<'_, W> {
     /// and the oracle decides the named facets, each key once. Returns the named candidates,
     /// sorted, and the decisions in key order; `None` when the trace must stop.
     ///
-    /// With an oracle that decides off the CPU ([`Oracle::level_slice`]), a large frontier
+    /// With an oracle that decides off the CPU ([`Decide::level_slice`]), a large frontier
     /// goes in slices: slice c + 1 is named while slice c is decided, and a key named in
     /// several slices is decided in the first. A verdict depends only on the key's vertex
     /// values, so the result is the same as one batch's.
     ///
-    /// [`Oracle::level_slice`]: super::Oracle::level_slice
+    /// [`Decide::level_slice`]: super::Decide::level_slice
     #[allow(clippy::type_complexity)]
     fn first_round(
         &mut self,
@@ -380,6 +380,7 @@ impl<const W: usize> Engine<'_, W> {
         let slice = self
             .ctx
             .oracle
+            .decisions()
             .level_slice()
             .unwrap_or(len)
             .min(by_memory)

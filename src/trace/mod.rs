@@ -37,7 +37,7 @@ use serde::Serialize;
 
 pub use crate::cpu::certificate::{CROSSED, OUTSIDE, UNCERTAIN};
 pub use crate::cpu::solve::Status;
-pub use oracle::{CpuOracle, Decisions, Oracle};
+pub use oracle::{CpuOracle, CpuScan, Decide, Decisions, DeviceValues, Evaluate, Oracle, Scan};
 pub use region::{box_slack, coord_bits, in_box, in_box_closed, lattice_bounds, Domain};
 use sample::sample_from;
 pub use sample::{CrossingChecks, Sample, MAX_SINGULAR};
@@ -505,14 +505,15 @@ mod tests {
         fn name(&self) -> String {
             self.0.name()
         }
-        fn eval_vertices(
-            &self,
-            tri: &Triangulation,
-            lattice: &[i32],
-            out: &mut [f64],
-        ) -> Result<()> {
-            self.0.eval_vertices(tri, lattice, out)
+        fn values(&self) -> &dyn Evaluate {
+            &self.0
         }
+        fn decisions(&self) -> &dyn Decide {
+            self
+        }
+    }
+
+    impl Decide for Sliced<'_> {
         fn decide(
             &self,
             values: &[f64],

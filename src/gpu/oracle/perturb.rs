@@ -5,7 +5,7 @@ use rayon::prelude::*;
 
 use super::GpuOracle;
 use crate::error::Result;
-use crate::trace::{CpuOracle, Oracle};
+use crate::trace::Evaluate;
 use crate::triangulation::Triangulation;
 
 impl GpuOracle<'_> {
@@ -19,7 +19,7 @@ impl GpuOracle<'_> {
     ) -> Result<()> {
         let (d, k) = (tri.dim(), self.k);
         let mut cpu = vec![0.0; lattice.len() / d * k];
-        CpuOracle::new(self.f).eval_vertices(tri, lattice, &mut cpu)?;
+        self.cpu.eval_vertices(tri, lattice, &mut cpu)?;
         out.par_chunks_mut(2 * k)
             .zip(lattice.par_chunks(d))
             .zip(cpu.par_chunks(k))

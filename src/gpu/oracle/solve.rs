@@ -12,12 +12,13 @@ use rayon::prelude::*;
 
 use super::device::{add_time, Stage};
 use super::GpuOracle;
+use crate::cpu::batch;
 use crate::cpu::certificate::{Margins, BIG, MAX_CONTRACTION, MAX_N};
 use crate::cpu::solve::{filter_verdict, scaled_rows, Status};
 use crate::error::{Error, Result};
 use crate::expr::certified::DeviceReal;
 use crate::gpu::wgsl::{stage_prelude, validate, Precision};
-use crate::trace::{CpuOracle, Decisions, Oracle};
+use crate::trace::Decisions;
 
 /// The solve shader, before its prelude.
 pub const SOLVE_WGSL: &str = include_str!("../../../shaders/solve.wgsl");
@@ -135,7 +136,7 @@ impl GpuOracle<'_> {
 
     #[doc(hidden)] // a stage alone, for tests and benchmarks
     /// The shader stage alone, the twin of [`Decider::fast_path`](crate::cpu::solve::Decider::fast_path): for each simplex (rows of
-    /// vertex indices into `values`, as in [`Oracle::decide`]), the shader's verdict as the
+    /// vertex indices into `values`, as in [`Decide::decide`](crate::trace::Decide::decide)), the shader's verdict as the
     /// fast path's `Option<Status>` (None: uncertain), and lambda. No host filter runs first.
     pub fn solve_stage(
         &self,
@@ -308,7 +309,7 @@ impl GpuOracle<'_> {
             .collect();
         let mut sub_status = vec![Status::Outside; recheck.len()];
         let mut sub_lambda = vec![0.0; recheck.len() * n];
-        let cpu = CpuOracle::new(self.f).decide(values, &sub, &mut sub_status, &mut sub_lambda)?;
+        let exact = batch::decide(self.k, values, &sub, &mut sub_status, &mut sub_lambda);
         for ((&i, &s), l) in recheck
             .iter()
             .zip(&sub_status)
@@ -324,7 +325,7 @@ impl GpuOracle<'_> {
             .fetch_add(contradicted as u64, Ordering::Relaxed);
         add_time(&self.host_ns, started);
         Ok(Decisions {
-            exact: cpu.exact,
+            exact,
             on_device: (sent.len() - recheck.len()) as u64,
         })
     }

@@ -1,4 +1,4 @@
-//! The exhaustive scan with f's values from a device ([`Oracle::device_values`]): the grid
+//! The exhaustive scan with f's values from a device ([`Scan::device_values`]): the grid
 //! holds the device's values with bounds that contain the CPU's values, sign codes admit
 //! both signs wherever a bound reaches 0 (so the candidates are a superset of the CPU's),
 //! and the device certifies verdicts that hold for every value within the bounds. The CPU
@@ -6,7 +6,7 @@
 //! decide, keeps of those exactly its own candidates, and decides them from its own values.
 //! So S, its order and its points are the CPU backend's, whatever the device's rounding.
 //!
-//! [`Oracle::device_values`]: crate::trace::Oracle::device_values
+//! [`Scan::device_values`]: crate::trace::Scan::device_values
 
 // `!(a > b)` is meant: a NaN value or bound must give both signs.
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
@@ -17,11 +17,11 @@ use rayon::prelude::*;
 
 use super::candidates::{pass_mask, sign_code};
 use super::ScanGrid;
+use crate::cpu::batch;
 use crate::cpu::certificate::{CROSSED, OUTSIDE};
 use crate::cpu::solve::Status;
 use crate::error::{Error, Result};
-use crate::trace::oracle::decide_on_cpu;
-use crate::trace::{Decisions, TraceContext, TraceStats};
+use crate::trace::{Decisions, DeviceValues, TraceContext, TraceStats};
 
 /// The sign code of a vertex whose component values are known within bounds: bit 2c unless
 /// component c is certainly > 0, bit 2c + 1 unless it is certainly < 0 (both for an
@@ -38,14 +38,24 @@ pub fn bounded_sign_code(values: &[f64], bounds: &[f64]) -> u32 {
 }
 
 /// The CPU's values of f at the grid vertices it needed so far: output-sensitive (the
-/// vertices of candidates the device did not rule out).
-#[derive(Default)]
-pub(super) struct CpuValues {
+/// vertices of candidates the device did not rule out), and the device that rules out the
+/// others.
+pub(super) struct CpuValues<'a> {
+    device: &'a dyn DeviceValues,
     slot: HashMap<u32, u32>,
     values: Vec<f64>,
 }
 
-impl CpuValues {
+impl<'a> CpuValues<'a> {
+    /// None yet, for the scan whose device values come from `device`.
+    pub(super) fn new(device: &'a dyn DeviceValues) -> Self {
+        CpuValues {
+            device,
+            slot: HashMap::new(),
+            values: Vec::new(),
+        }
+    }
+
     /// Evaluates f on the CPU at the vertices of `rows` not held yet; returns how many.
     fn ensure(&mut self, ctx: &TraceContext, grid: &ScanGrid, rows: &[u32]) -> Result<u64> {
         let (d, k) = (ctx.d, ctx.k);
@@ -67,6 +77,7 @@ impl CpuValues {
         let first = self.values.len() / k.max(1);
         self.values.resize((first + new.len()) * k, 0.0);
         ctx.oracle
+            .values()
             .eval_vertices(ctx.tri, &lattice, &mut self.values[first * k..])?;
         for (i, &v) in new.iter().enumerate() {
             self.slot.insert(v, (first + i) as u32);
@@ -103,7 +114,7 @@ pub(super) fn decide(
     ctx: &TraceContext,
     grid: &ScanGrid,
     rows: &[u32],
-    cpu: &mut CpuValues,
+    cpu: &mut CpuValues<'_>,
     stats: &mut TraceStats,
     status: &mut [Status],
     lambda: &mut [f64],
@@ -111,7 +122,7 @@ pub(super) fn decide(
     let (k, n) = (ctx.k, ctx.k + 1);
     let m = rows.len() / n;
     let mut verdicts = vec![0u32; m];
-    ctx.oracle
+    cpu.device
         .decide_certified(grid.values(), grid.bounds(), rows, &mut verdicts)?;
     let open: Vec<usize> = (0..m).filter(|&i| verdicts[i] != OUTSIDE).collect();
     let open_rows: Vec<u32> = open
@@ -137,7 +148,7 @@ pub(super) fn decide(
         .collect();
     let mut st = vec![Status::Outside; kept.len()];
     let mut lam = vec![0.0; kept.len() * n];
-    let exact = decide_on_cpu(k, &cpu.values, &sub, &mut st, &mut lam);
+    let exact = batch::decide(k, &cpu.values, &sub, &mut st, &mut lam);
     for ((&o, &s), l) in kept.iter().zip(&st).zip(lam.chunks_exact(n)) {
         let i = open[o];
         if verdicts[i] == CROSSED && !s.crossed() {

@@ -70,7 +70,7 @@ impl ScanGrid {
     }
 
     /// f at every vertex, rows of k: the CPU's values, or with an oracle that has
-    /// [`device_values`](crate::trace::Oracle::device_values), the device's.
+    /// [`device_values`](crate::trace::Scan::device_values), the device's.
     pub fn values(&self) -> &[f64] {
         &self.values
     }
@@ -164,7 +164,11 @@ impl ScanGrid {
 /// Bytes per grid vertex: f's k values (and their bounds, with device values), the sign
 /// code and the coordinates while they are evaluated.
 fn vertex_bytes(ctx: &TraceContext) -> u64 {
-    let per_value = if ctx.oracle.device_values() { 16 } else { 8 };
+    let per_value = if ctx.oracle.scans().device_values().is_some() {
+        16
+    } else {
+        8
+    };
     ctx.k as u64 * per_value + 12
 }
 
@@ -470,9 +474,9 @@ pub(crate) fn build(ctx: &TraceContext, bbox: &[[f64; 2]]) -> Result<ScanGrid> {
              smaller box or a larger edge"
         )));
     }
-    let on_device = ctx.oracle.device_values();
+    let device = ctx.oracle.scans().device_values();
     grid.values = vec![0.0; total * k];
-    if on_device {
+    if device.is_some() {
         grid.bounds = vec![0.0; total * k];
     }
     grid.codes = vec![0; total];
@@ -498,9 +502,9 @@ pub(crate) fn build(ctx: &TraceContext, bbox: &[[f64; 2]]) -> Result<ScanGrid> {
                 0
             }
         };
-        if on_device {
+        if let Some(device) = device {
             pairs.resize(2 * (end - start) * k, 0.0);
-            ctx.oracle.eval_certified(ctx.tri, &lattice, &mut pairs)?;
+            device.eval_certified(ctx.tri, &lattice, &mut pairs)?;
             let bounds = &mut grid.bounds[start * k..end * k];
             values
                 .par_iter_mut()
@@ -513,7 +517,9 @@ pub(crate) fn build(ctx: &TraceContext, bbox: &[[f64; 2]]) -> Result<ScanGrid> {
                 .zip(values.par_chunks(k).zip(bounds.par_chunks(k)))
                 .for_each(|((code, v), (f, e))| *code = bounded_sign_code(f, e) | base(v));
         } else {
-            ctx.oracle.eval_vertices(ctx.tri, &lattice, values)?;
+            ctx.oracle
+                .values()
+                .eval_vertices(ctx.tri, &lattice, values)?;
             grid.codes[start..end]
                 .par_iter_mut()
                 .zip(lattice.par_chunks(d))

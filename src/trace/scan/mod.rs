@@ -68,8 +68,9 @@ pub(crate) fn scan<const W: usize>(ctx: &TraceContext, bbox: &[[f64; 2]]) -> Res
         }
         g => g?,
     };
-    let on_device = ctx.oracle.device_values();
-    let mut cpu_values = on_device.then(device_values::CpuValues::default);
+    let device = ctx.oracle.scans().device_values();
+    let on_device = device.is_some();
+    let mut cpu_values = device.map(device_values::CpuValues::new);
     let mut stats = TraceStats {
         vertices: grid.len() as u64,
         device_vertex_evaluations: if on_device { grid.len() as u64 } else { 0 },
@@ -83,7 +84,7 @@ pub(crate) fn scan<const W: usize>(ctx: &TraceContext, bbox: &[[f64; 2]]) -> Res
     let mut batch = if cubes.is_empty() {
         None
     } else {
-        Some(ctx.oracle.scan_candidates(&grid, cubes.clone())?)
+        Some(ctx.oracle.scans().candidates(&grid, cubes.clone())?)
     };
     while let Some(cands) = batch.take() {
         // Ctrl-C: what the batches so far found is kept.
@@ -102,7 +103,7 @@ pub(crate) fn scan<const W: usize>(ctx: &TraceContext, bbox: &[[f64; 2]]) -> Res
         // must keep taking work while they wait (a worker blocked on a thread join starves
         // the pool). No lock is held across either side (see `GpuOracle`'s buffer pools).
         let (ahead, decided) = rayon::join(
-            || (!next.is_empty()).then(|| ctx.oracle.scan_candidates(grid, next)),
+            || (!next.is_empty()).then(|| ctx.oracle.scans().candidates(grid, next)),
             || {
                 decide_batch(
                     ctx,
@@ -141,7 +142,7 @@ fn decide_batch<const W: usize>(
     ctx: &TraceContext,
     grid: &ScanGrid,
     cands: &Candidates,
-    cpu_values: Option<&mut device_values::CpuValues>,
+    cpu_values: Option<&mut device_values::CpuValues<'_>>,
     stats: &mut TraceStats,
     found: &mut Vec<Key<W>>,
 ) -> Result<()> {
@@ -155,6 +156,7 @@ fn decide_batch<const W: usize>(
     } else {
         let how = ctx
             .oracle
+            .decisions()
             .decide(grid.values(), rows, &mut status, &mut lambda)?;
         stats.count_decisions(&status, how);
     }
@@ -289,7 +291,7 @@ fn scan_box<'a>(opts: &'a TraceOptions) -> Result<&'a [[f64; 2]]> {
 }
 
 /// The lattice vertices the exhaustive scan of `opts`' box reads, with f (from `oracle`) and
-/// sign codes at each: what [`Oracle::scan_candidates`] generates candidates from. For
+/// sign codes at each: what [`Scan::candidates`](crate::trace::Scan::candidates) generates candidates from. For
 /// comparing candidate generators; [`exhaustive`] builds its own.
 pub fn scan_grid(
     f: &dyn ImplicitFunction,
