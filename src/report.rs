@@ -45,6 +45,13 @@ pub struct BackendInfo {
     pub recheck_share: Option<f64>,
     /// GPU: seconds in device round trips, summed over the threads that made them.
     pub gpu_s: Option<f64>,
+    /// GPU: seconds of host work per item inside the GPU oracle (packing, decoding,
+    /// re-deciding on the CPU), summed over threads ([`crate::gpu::GpuStats::host_s`]).
+    pub host_s: Option<f64>,
+    /// GPU: bytes written to the device.
+    pub upload_bytes: Option<u64>,
+    /// GPU: bytes copied back from the device.
+    pub readback_bytes: Option<u64>,
     /// GPU: the adapter.
     pub adapter: Option<AdapterSummary>,
 }
@@ -57,6 +64,9 @@ impl BackendInfo {
             precision: "f64".into(),
             recheck_share: None,
             gpu_s: None,
+            host_s: None,
+            upload_bytes: None,
+            readback_bytes: None,
             adapter: None,
         }
     }

@@ -445,6 +445,10 @@ fn the_gpu_backend_reports_itself_and_matches_the_cpu() {
         assert!(g["backend"].as_str().unwrap().starts_with("gpu: "), "{g}");
         let share = g["recheck_share"].as_f64().unwrap();
         assert!((0.0..=1.0).contains(&share));
+        // What crossed between host and device: inputs of every dispatch, verdicts back.
+        assert!(g["upload_bytes"].as_u64().unwrap() > 0, "{g}");
+        assert!(g["readback_bytes"].as_u64().unwrap() > 0, "{g}");
+        assert!(g["host_s"].as_f64().unwrap() >= 0.0, "{g}");
         if precision == "f32" {
             assert_eq!(g["precision"], "f32");
         }
@@ -458,6 +462,7 @@ fn the_gpu_backend_reports_itself_and_matches_the_cpu() {
         assert!(o.status.success());
         let c = report(&dir, "c.json");
         assert_eq!(g["simplex_count"], c["simplex_count"]);
+        assert!(c["upload_bytes"].is_null() && c["host_s"].is_null(), "{c}");
         assert_eq!(g["cells"], c["cells"]);
         let read = |f: &str| std::fs::read_to_string(dir.join(f)).unwrap();
         assert_eq!(

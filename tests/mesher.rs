@@ -257,6 +257,9 @@ const CONTRACT_KEYS: &[&str] = &[
     "precision",
     "recheck_share",
     "gpu_s",
+    "host_s",
+    "upload_bytes",
+    "readback_bytes",
     "adapter",
     "threads",
     "elapsed_s",
@@ -349,8 +352,9 @@ fn the_result_and_its_report_match_the_command_line() {
 /// Every key of two reports of one run but those that time it or weigh its heap.
 #[cfg(feature = "cli")]
 fn assert_same_report(cli: &serde_json::Value, lib: &serde_json::Value, case: &str) {
-    const MEASURED: [&str; 6] = [
+    const MEASURED: [&str; 7] = [
         "elapsed_s",
+        "host_s",
         "simplices_per_s",
         "peak_memory_bytes",
         "bytes_per_simplex",

@@ -1,5 +1,7 @@
 """Every preset: the package gives the CLI's sample, in the same order, and its topology."""
 
+import os
+
 import numpy as np
 import pytest
 
@@ -67,3 +69,20 @@ def test_keys_are_deterministic():
     a, b = p.trace(threads=1), p.trace(threads=2)
     assert np.array_equal(a.keys, b.keys)
     assert np.array_equal(a.points, b.points)
+
+
+def test_a_gpu_report_says_what_crossed_to_the_device():
+    p = isomesh.Problem.preset("torus", edge=0.1)
+    try:
+        s = p.trace(backend="gpu")
+    except RuntimeError as e:
+        if os.environ.get("ISOMESH_REQUIRE_GPU"):
+            raise
+        pytest.skip(f"no GPU: {e}")
+    rep = s.report
+    assert rep["backend"].startswith("gpu: ")
+    assert rep["upload_bytes"] > 0 and rep["readback_bytes"] > 0
+    assert rep["host_s"] >= 0.0
+    cpu = p.trace(backend="cpu").report
+    assert cpu["upload_bytes"] is None and cpu["host_s"] is None
+    assert cpu["simplex_count"] == rep["simplex_count"]

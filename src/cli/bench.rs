@@ -489,8 +489,8 @@ fn scan_table(args: &BenchArgs, gpu: Option<&Gpu>) -> Result<Vec<Value>> {
         return Ok(rows);
     }
     say!("\nExhaustive scans, median of {}; vertices and decisions: device / CPU, with device values\n", args.repeats);
-    say!("| case | vertices | simplices | CPU | GPU | GPU, device values | vertices | decisions | same S |");
-    say!("|---|---|---|---|---|---|---|---|---|");
+    say!("| case | vertices | simplices | CPU | GPU | GPU, device values | vertices | decisions | bytes moved per vertex | same S |");
+    say!("|---|---|---|---|---|---|---|---|---|---|");
     for case in SCAN_CASES {
         let p = case.problem()?;
         let cpu_oracle = CpuOracle::new(&p.system);
@@ -507,17 +507,21 @@ fn scan_table(args: &BenchArgs, gpu: Option<&Gpu>) -> Result<Vec<Value>> {
             "-".into(),
             "-".into(),
             "-".into(),
+            "-".into(),
         ];
         if let Some(g) = gpu {
             let bbox = case.bbox(p.dim());
+            let vertices = cpu.stats.vertices.max(1) as f64;
             let o = GpuOracle::new(g.clone(), &p.system, None)?;
             let (gpu_s, plain) = timed(args.repeats, || scan_case(&p, &bbox, &o))?;
+            let plain_moved = moved_per_run(&o, args.repeats, vertices, &mut row, "gpu");
             let with_values = GpuOptions {
                 device_values: true,
                 ..GpuOptions::default()
             };
             let o = GpuOracle::with_options(g.clone(), &p.system, with_values)?;
             let (values_s, dev) = timed(args.repeats, || scan_case(&p, &bbox, &o))?;
+            let dev_moved = moved_per_run(&o, args.repeats, vertices, &mut row, "device_values");
             let st = &dev.stats;
             let same =
                 plain.sorted_keys() == cpu.sorted_keys() && dev.sorted_keys() == cpu.sorted_keys();
@@ -529,10 +533,13 @@ fn scan_table(args: &BenchArgs, gpu: Option<&Gpu>) -> Result<Vec<Value>> {
                     st.device_vertex_evaluations, st.cpu_vertex_evaluations
                 ),
                 format!("{} / {}", st.device_decisions, st.cpu_decisions),
+                format!("{plain_moved:.1} / {dev_moved:.1}"),
                 if same { "yes" } else { "NO" }.into(),
             ];
             row["gpu_s"] = json!(gpu_s);
             row["device_values_s"] = json!(values_s);
+            row["gpu_vertices_per_s"] = json!(vertices / gpu_s);
+            row["device_values_vertices_per_s"] = json!(vertices / values_s);
             row["gpu_precision"] = json!(o.precision().ty());
             split_keys(&mut row, st);
             row["same_sample"] = json!(same);
@@ -544,7 +551,7 @@ fn scan_table(args: &BenchArgs, gpu: Option<&Gpu>) -> Result<Vec<Value>> {
             }
         }
         say!(
-            "| {} | {} | {} | {cpu_s:.3} s | {} | {} | {} | {} | {} |",
+            "| {} | {} | {} | {cpu_s:.3} s | {} | {} | {} | {} | {} | {} |",
             case.label,
             cpu.stats.vertices,
             cpu.len(),
@@ -552,11 +559,32 @@ fn scan_table(args: &BenchArgs, gpu: Option<&Gpu>) -> Result<Vec<Value>> {
             cols[1],
             cols[2],
             cols[3],
-            cols[4]
+            cols[4],
+            cols[5]
         );
         rows.push(row);
     }
     Ok(rows)
+}
+
+/// Bytes uploaded and read back per lattice vertex in one of `repeats` runs of oracle `o`
+/// (whose counters then restart), with the run's counts and host seconds under `prefix`
+/// in `row`.
+fn moved_per_run(
+    o: &GpuOracle,
+    repeats: usize,
+    vertices: f64,
+    row: &mut Value,
+    prefix: &str,
+) -> f64 {
+    let st = o.stats();
+    let runs = repeats.max(1) as u64;
+    let (up, back) = (st.upload_bytes / runs, st.readback_bytes / runs);
+    row[format!("{prefix}_upload_bytes")] = json!(up);
+    row[format!("{prefix}_readback_bytes")] = json!(back);
+    row[format!("{prefix}_host_s")] = json!(st.host_s / runs as f64);
+    o.reset_stats();
+    (up + back) as f64 / vertices
 }
 
 /// Surfaces in R^3 against the grid mesher: a row per surface and size, and each surface's

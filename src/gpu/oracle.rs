@@ -63,10 +63,14 @@ pub struct GpuStats {
     /// Seconds the host spent submitting to and waiting on the device, summed over the
     /// threads that used the oracle (the exhaustive scan's two stages overlap).
     pub gpu_s: f64,
-    /// Seconds of host work around the shader: the cheap filters, packing rows, and
-    /// re-deciding uncertain simplices on the CPU (overlapped with the device's work unless
-    /// phased).
+    /// Seconds of host work per item inside the oracle, around the shaders: the cheap
+    /// filters, packing inputs, decoding outputs, and re-deciding uncertain simplices on the
+    /// CPU (overlapped with the device's work unless phased), summed over threads.
     pub host_s: f64,
+    /// Bytes written to the device: shader inputs and parameters.
+    pub upload_bytes: u64,
+    /// Bytes copied back from the device.
+    pub readback_bytes: u64,
     /// Phased runs only ([`GpuOracle::set_phased`]): seconds uploading inputs,
     pub upload_s: f64,
     /// running the shader,
@@ -106,6 +110,8 @@ pub struct GpuOracle<'f> {
     upload_ns: AtomicU64,
     compute_ns: AtomicU64,
     readback_ns: AtomicU64,
+    upload_bytes: AtomicU64,
+    readback_bytes: AtomicU64,
     /// Split each round trip into timed, synchronous steps (for benchmarks).
     phased: AtomicBool,
     /// The exhaustive scan takes f's values from the device ([`GpuOptions::device_values`]).
@@ -194,6 +200,8 @@ impl<'f> GpuOracle<'f> {
             upload_ns: AtomicU64::new(0),
             compute_ns: AtomicU64::new(0),
             readback_ns: AtomicU64::new(0),
+            upload_bytes: AtomicU64::new(0),
+            readback_bytes: AtomicU64::new(0),
             phased: AtomicBool::new(false),
             device_values: options.device_values,
             perturb: AtomicU64::new(0),
@@ -224,6 +232,8 @@ impl<'f> GpuOracle<'f> {
             upload_s: secs(&self.upload_ns),
             compute_s: secs(&self.compute_ns),
             readback_s: secs(&self.readback_ns),
+            upload_bytes: self.upload_bytes.load(Ordering::Relaxed),
+            readback_bytes: self.readback_bytes.load(Ordering::Relaxed),
         }
     }
 
@@ -238,6 +248,8 @@ impl<'f> GpuOracle<'f> {
             &self.upload_ns,
             &self.compute_ns,
             &self.readback_ns,
+            &self.upload_bytes,
+            &self.readback_bytes,
         ] {
             c.store(0, Ordering::Relaxed);
         }
@@ -372,6 +384,9 @@ impl BackendInfo {
                 0.0
             }),
             gpu_s: Some(st.gpu_s),
+            host_s: Some(st.host_s),
+            upload_bytes: Some(st.upload_bytes),
+            readback_bytes: Some(st.readback_bytes),
             adapter: Some(o.gpu().adapter.clone()),
         }
     }

@@ -85,6 +85,11 @@ impl GpuOracle<'_> {
         if !input.is_empty() {
             self.gpu.queue.write_buffer(inbuf, 0, input);
         }
+        let params_bytes = 16;
+        self.upload_bytes
+            .fetch_add(input.len() as u64 + params_bytes, Ordering::Relaxed);
+        self.readback_bytes
+            .fetch_add(sizes.iter().sum::<u64>(), Ordering::Relaxed);
         if phased {
             let index = self.gpu.queue.submit([]);
             self.wait(Some(index))?;

@@ -1,10 +1,12 @@
 //! The vertex-evaluation stage (`shaders/eval_vertices.wgsl`): f at lattice vertices, mapped
 //! to R^d inside the shader; the twin of [`eval_lattice`](crate::cpu::eval_vertices::eval_lattice).
 
-use super::device::{pipeline, Stage};
+use std::sync::OnceLock;
+use std::time::Instant;
+
+use super::device::{add_time, pipeline, Stage};
 use super::GpuOracle;
 use crate::error::{Error, Result};
-use std::sync::OnceLock;
 
 use crate::expr::program::Program;
 use crate::gpu::wgsl::{eval_shader, Precision};
@@ -77,20 +79,19 @@ impl GpuOracle<'_> {
         let mut values = Vec::with_capacity(lattice.len() / d.max(1) * outs);
         for part in lattice.chunks(chunk * d) {
             let count = part.len() / d;
+            let packing = Instant::now();
             let input: Vec<f64> = head
                 .iter()
                 .copied()
                 .chain(part.iter().map(|&u| u as f64))
                 .collect();
-            let pending = self.submit(
-                stage,
-                pipe,
-                &self.encode_reals(&input),
-                count,
-                &[count * outs * rs],
-                false,
-            )?;
-            values.extend(self.decode_reals(&self.finish(pending)?[0]));
+            let input = self.encode_reals(&input);
+            add_time(&self.host_ns, packing);
+            let pending = self.submit(stage, pipe, &input, count, &[count * outs * rs], false)?;
+            let out = self.finish(pending)?;
+            let decoding = Instant::now();
+            values.extend(self.decode_reals(&out[0]));
+            add_time(&self.host_ns, decoding);
         }
         Ok(values)
     }

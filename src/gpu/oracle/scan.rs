@@ -3,10 +3,11 @@
 
 use std::ops::Range;
 use std::sync::atomic::Ordering;
+use std::time::Instant;
 
 use rayon::prelude::*;
 
-use super::device::{pipeline, Stage};
+use super::device::{add_time, pipeline, Stage};
 use super::GpuOracle;
 use crate::error::{Error, Result};
 use crate::gpu::wgsl::{stage_prelude, validate, Precision};
@@ -153,7 +154,10 @@ impl GpuOracle<'_> {
                 }
             }
         }
-        Ok(sorted_candidates(&words, k))
+        let sorting = Instant::now();
+        let sorted = sorted_candidates(&words, k);
+        add_time(&self.host_ns, sorting);
+        Ok(sorted)
     }
 
     /// One dispatch of the scan shader over the `cubes` cubes of `window`: its records with
@@ -181,6 +185,7 @@ impl GpuOracle<'_> {
                 true,
             )?;
             let res = self.finish(pending)?;
+            let decoding = Instant::now();
             let found = bytemuck::pod_read_unaligned::<u32>(&res[0][..4]) as usize;
             self.scan_density
                 .store((found * (1 << 16) / cubes.max(1)) as u64, Ordering::Relaxed);
@@ -192,6 +197,7 @@ impl GpuOracle<'_> {
                         *v += lo;
                     }
                 }
+                add_time(&self.host_ns, decoding);
                 return Ok(Some(out));
             }
             if found > max_cap {

@@ -2,9 +2,11 @@
 //! labelling matrix within the bounds of the device's values; the twin of
 //! [`CertifiedSolver`](crate::cpu::certificate::CertifiedSolver).
 
+use std::time::Instant;
+
 use rayon::prelude::*;
 
-use super::device::{pipeline, Stage};
+use super::device::{add_time, pipeline, Stage};
 use super::solve::{solve_prelude, CERTIFY_WGSL, GAUSS_JORDAN_WGSL};
 use super::GpuOracle;
 use crate::cpu::certificate::{pack_rows, UNCERTAIN};
@@ -57,12 +59,14 @@ impl GpuOracle<'_> {
         for start in (0..m).step_by(chunk) {
             let end = (start + chunk).min(m);
             let c = end - start;
+            let packing = Instant::now();
             let mut input = Vec::with_capacity(2 * c * per);
             for i in start..end {
                 input.extend_from_slice(&l[i * per..(i + 1) * per]);
                 input.extend_from_slice(&e[i * per..(i + 1) * per]);
             }
             let input = self.encode_reals(&input);
+            add_time(&self.host_ns, packing);
             self.solve_chunk(Stage::SolveCertified, pipe, &input, c, &mut flags, &mut lam)?;
         }
         Ok((flags, lam))
@@ -78,6 +82,7 @@ impl GpuOracle<'_> {
         bounds: &[f64],
         simplices: &[u32],
     ) -> Result<Vec<u32>> {
+        let packing = Instant::now();
         let (k, n) = (self.k, self.k + 1);
         let per = k * n;
         let m = simplices.len() / n;
@@ -102,7 +107,9 @@ impl GpuOracle<'_> {
                 .flat_map(|&i| src[i * per..(i + 1) * per].iter().copied())
                 .collect()
         };
-        let (flags, _) = self.solve_certified_stage(&gather(&l), &gather(&e))?;
+        let (l, e) = (gather(&l), gather(&e));
+        add_time(&self.host_ns, packing);
+        let (flags, _) = self.solve_certified_stage(&l, &e)?;
         let mut out = vec![UNCERTAIN; m];
         for (&i, f) in sent.iter().zip(flags) {
             out[i] = f;
