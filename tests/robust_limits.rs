@@ -467,6 +467,29 @@ fn endless_specs_are_refused_and_nan_scans_say_so() {
     assert!(text(&o).contains("NaN or infinite"), "{}", text(&o));
 }
 
+/// A spec of many seed points is refused under a memory limit its reading would pass: the
+/// TOML reader takes about 37 bytes for each byte of such a spec.
+#[test]
+fn a_spec_of_many_seeds_is_refused_under_a_limit_its_reading_would_pass() {
+    let dir = scratch("many-seeds");
+    let mut spec =
+        String::from("ambient_dim = 3\nequations = [\"x1^2 + x2^2 + x3^2 - 1\"]\nseeds = [\n");
+    for i in 0..200_000 {
+        let t = i as f64 * 1e-3;
+        spec += &format!("[{:.6}, {:.6}, 0.0],\n", t.cos(), t.sin());
+    }
+    spec += "]\n";
+    std::fs::write(dir.join("s.toml"), &spec).unwrap();
+    // About 5.6 MB of text: 56 MB by the old estimate, under this limit; 205 MB resident
+    // to read.
+    let o = isomesh(
+        &dir,
+        &["trace", "s.toml", "--max-memory", "96M", "--no-complex"],
+    );
+    assert_eq!(o.status.code(), Some(1), "{}", text(&o));
+    assert!(text(&o).contains("reading the spec"), "{}", text(&o));
+}
+
 /// An f of a scale far from 1 is found by the seed search and from seeds as the same f at
 /// scale 1 is: the projection accepts a point within the tolerance of M, not only |f| that
 /// small.

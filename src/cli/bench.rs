@@ -489,7 +489,7 @@ fn scan_table(args: &BenchArgs, gpu: Option<&Gpu>) -> Result<Vec<Value>> {
         return Ok(rows);
     }
     say!("\nExhaustive scans, median of {}; vertices and decisions: device / CPU, with device values\n", args.repeats);
-    say!("| case | vertices | simplices | CPU | GPU | GPU, device values | vertices | decisions | bytes moved per vertex | same S |");
+    say!("| case | vertices | simplices | CPU | GPU | GPU, device values | vertices | decisions | bytes per vertex, GPU / device values | same S |");
     say!("|---|---|---|---|---|---|---|---|---|---|");
     for case in SCAN_CASES {
         let p = case.problem()?;
