@@ -468,7 +468,7 @@ fn endless_specs_are_refused_and_nan_scans_say_so() {
 }
 
 /// A spec of many seed points is refused under a memory limit its reading would pass: the
-/// TOML reader takes about 37 bytes for each byte of such a spec.
+/// TOML reader takes about 55 bytes of heap for each byte of such a spec.
 #[test]
 fn a_spec_of_many_seeds_is_refused_under_a_limit_its_reading_would_pass() {
     let dir = scratch("many-seeds");
@@ -480,8 +480,7 @@ fn a_spec_of_many_seeds_is_refused_under_a_limit_its_reading_would_pass() {
     }
     spec += "]\n";
     std::fs::write(dir.join("s.toml"), &spec).unwrap();
-    // About 5.6 MB of text: 56 MB by the old estimate, under this limit; 205 MB resident
-    // to read.
+    // 5.6 MB of text: 56 MB by the old estimate, under this limit; 307 MB of heap to read.
     let o = isomesh(
         &dir,
         &["trace", "s.toml", "--max-memory", "96M", "--no-complex"],

@@ -269,15 +269,24 @@ pub fn check_box(bbox: &[[f64; 2]], d: usize) -> Result<()> {
 /// program (a sum of 10^6 terms takes about 20 MiB).
 pub const MAX_SPEC_BYTES: u64 = 64 << 20;
 
-/// Memory the TOML reader needs for a byte of text, at its peak: about 8 on a spec holding
-/// one long equation, and 28 to 37 (resident) on specs holding 200,000 to 300,000 seed
-/// points, whose every number becomes a value with its span; a little more is asked for.
-const TOML_BYTES_PER_BYTE: u64 = 40;
+/// Heap the TOML reader needs at its peak: about 8 bytes per byte of text (measured on a spec
+/// holding one long equation), plus about 380 per value in an array (200,000 seed points in
+/// 5.6 MB of text took 307 MB: each number becomes a value with its span); a little more is
+/// asked for. Values are counted by their separators, `[` and `,`.
+const TOML_BYTES_PER_BYTE: u64 = 10;
+/// See [`TOML_BYTES_PER_BYTE`].
+const TOML_BYTES_PER_VALUE: u64 = 400;
+
+/// The heap [`Spec::from_toml`] asks for before it reads `text`.
+fn toml_bytes(text: &str) -> u64 {
+    let values = text.bytes().filter(|&b| b == b',' || b == b'[').count() as u64;
+    TOML_BYTES_PER_BYTE * text.len() as u64 + TOML_BYTES_PER_VALUE * values
+}
 
 impl Spec {
     /// Parses TOML text.
     pub fn from_toml(text: &str) -> Result<Spec> {
-        crate::memory::ensure_room("reading the spec", TOML_BYTES_PER_BYTE * text.len() as u64)?;
+        crate::memory::ensure_room("reading the spec", toml_bytes(text))?;
         let mut spec: Spec = toml::from_str(text).map_err(|e| Error::Spec(e.to_string()))?;
         if let Ok(lits) = toml::from_str::<Literals>(text) {
             let at =
