@@ -277,9 +277,20 @@ const TOML_BYTES_PER_BYTE: u64 = 10;
 /// See [`TOML_BYTES_PER_BYTE`].
 const TOML_BYTES_PER_VALUE: u64 = 400;
 
-/// The heap [`Spec::from_toml`] asks for before it reads `text`.
+/// The heap [`Spec::from_toml`] asks for before it reads `text`: the separators of values
+/// are counted outside strings (an equation's commas are text, not values).
 fn toml_bytes(text: &str) -> u64 {
-    let values = text.bytes().filter(|&b| b == b',' || b == b'[').count() as u64;
+    let (mut quote, mut escaped, mut values) = (None, false, 0u64);
+    for b in text.bytes() {
+        match quote {
+            Some(_) if escaped => escaped = false,
+            Some(q) if b == b'\\' && q == b'"' => escaped = true,
+            Some(q) if b == q => quote = None,
+            Some(_) => {}
+            None if b == b'"' || b == b'\'' => quote = Some(b),
+            None => values += (b == b',' || b == b'[') as u64,
+        }
+    }
     TOML_BYTES_PER_BYTE * text.len() as u64 + TOML_BYTES_PER_VALUE * values
 }
 
@@ -395,5 +406,23 @@ impl Spec {
             bbox: self.bbox.clone(),
             triangulation,
         })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_reading_estimate_counts_values_outside_strings() {
+        let text = |body: &str| 10 * body.len() as u64;
+        // Commas of an equation (and an escaped quote before them) are text.
+        let eq = r#"equations = ["max(x1, x2) - \"a, b\""]"#;
+        assert_eq!(toml_bytes(eq), text(eq) + 400);
+        let lit = "equations = ['atan2(x1, x2)', 'x3']";
+        assert_eq!(toml_bytes(lit), text(lit) + 2 * 400);
+        // A seed point: its array and two commas, and the list's comma and bracket.
+        let seeds = "seeds = [[1, 0, 0],]";
+        assert_eq!(toml_bytes(seeds), text(seeds) + 5 * 400);
     }
 }
