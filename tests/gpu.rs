@@ -12,6 +12,7 @@ use isomesh::expr::{preset, Problem, Spec};
 use isomesh::gpu::{Gpu, GpuOptions, GpuOracle, Precision};
 use isomesh::trace::scan::candidates::candidates;
 use isomesh::trace::scan::candidates::Candidates;
+use isomesh::trace::scan::tiles::TilePlan;
 use isomesh::trace::{
     exhaustive, scan_grid, trace, CpuOracle, Decide, DeviceValues, Evaluate, Oracle, Sample, Scan,
     ScanGrid, TraceOptions,
@@ -1262,11 +1263,11 @@ fn gpu_scans_with_device_values_keep_the_cpu_box_within_1e_13_of_crossings() {
     }
 }
 
-/// The CPU evaluates f only at vertices of the candidates the device found crossed or could
-/// not decide (counted here from the grid, the candidates and the device's verdicts).
+/// The device-resident scan evaluates f on the device at every vertex of its tiles, and on
+/// the CPU only at the vertices of the candidates the device left open (counted here from
+/// the tiles' records, tile by tile), a small part of them.
 #[test]
 fn gpu_scans_with_device_values_evaluate_on_the_cpu_only_what_the_device_left_open() {
-    use isomesh::cpu::certificate::OUTSIDE;
     use std::collections::HashSet;
     let Some(g) =
         gpu("gpu_scans_with_device_values_evaluate_on_the_cpu_only_what_the_device_left_open")
@@ -1289,11 +1290,8 @@ fn gpu_scans_with_device_values_evaluate_on_the_cpu_only_what_the_device_left_op
         let p = problem(name, params);
         let tri = p.triangulation.build(p.dim()).unwrap();
         let bbox = cube(p.dim(), *half);
-        let opts = TraceOptions {
-            bbox: Some(bbox.clone()),
-            ..TraceOptions::default()
-        };
-        let n = isomesh::expr::ImplicitFunction::codim(&p.system) + 1;
+        let k = isomesh::expr::ImplicitFunction::codim(&p.system);
+        let plan = TilePlan::new(&tri, k, &bbox).unwrap();
         for &precision in &modes {
             let perturb = (c % 2 == 1).then_some(c as u64);
             let options = GpuOptions {
@@ -1303,26 +1301,29 @@ fn gpu_scans_with_device_values_evaluate_on_the_cpu_only_what_the_device_left_op
             };
             let oracle = GpuOracle::with_options(reopen(), &p.system, options).unwrap();
             oracle.perturb_device_values(perturb);
-            let grid = scan_grid(&p.system, &tri, &oracle, &opts).unwrap();
-            let cands = candidates(&grid, 0..grid.len());
-            let mut verdicts = vec![0; cands.rows.len() / n];
+            // The vertices of the records, per tile (a vertex on a border between tiles is
+            // evaluated for each).
+            let mut open = 0;
             oracle
-                .decide_certified(grid.values(), grid.bounds(), &cands.rows, &mut verdicts)
+                .scan_tiles(&tri, &plan, &mut |t, found| {
+                    let tile = &plan.tiles[t];
+                    let mut seen = HashSet::new();
+                    for r in found.records.chunks_exact(k + 2) {
+                        for s in std::iter::once(0).chain(r[1..=k].iter().copied()) {
+                            seen.insert(tile.corner(r[0], s));
+                        }
+                    }
+                    open += seen.len();
+                    Ok(true)
+                })
                 .unwrap();
-            let open: HashSet<u32> = cands
-                .rows
-                .chunks_exact(n)
-                .zip(&verdicts)
-                .filter(|(_, &v)| v != OUTSIDE)
-                .flat_map(|(row, _)| row.iter().copied())
-                .collect();
             let st = device_value_scan(&p, &tri, &bbox, precision, perturb, None).stats;
             let what = format!("{name} {precision:?}: {st:?}");
-            assert_eq!(st.device_vertex_evaluations, grid.len() as u64, "{what}");
+            let tiled: usize = plan.tiles.iter().map(|t| t.vertices()).sum();
+            assert_eq!(st.device_vertex_evaluations, tiled as u64, "{what}");
             assert!(
-                st.cpu_vertex_evaluations <= open.len() as u64,
-                "{what}: {} vertices of open candidates",
-                open.len()
+                st.cpu_vertex_evaluations <= open as u64,
+                "{what}: {open} vertices of open candidates"
             );
             assert!(st.cpu_vertex_evaluations > 0, "{what}");
             assert!(
@@ -1330,6 +1331,159 @@ fn gpu_scans_with_device_values_evaluate_on_the_cpu_only_what_the_device_left_op
                 "{what}"
             );
         }
+    }
+}
+
+/// The tile shaders against their CPU twin in f64, on the values and places the device
+/// computes (lavapipe rounds as the CPU does): the same records, candidates and unknown
+/// vertices, tile by tile.
+#[test]
+fn the_tile_shaders_match_their_cpu_twin() {
+    use isomesh::cpu::certificate::{CertifiedSolver, UNCERTAIN};
+    use isomesh::expr::certified::{lattice_point, Cv, Rules};
+    use isomesh::trace::scan::tiles::{twin_tile_with, Place};
+    let Some(g) = gpu("the_tile_shaders_match_their_cpu_twin") else {
+        return;
+    };
+    if !g.adapter.shader_f64 {
+        return;
+    }
+    drop(g);
+    let cases: [Scaled; 4] = [
+        ("sphere", vec![("edge", 0.1)], 0.8),
+        ("torus", vec![("edge", 0.07)], 1.0),
+        ("flat-torus", vec![("edge", 0.2)], 0.8),
+        (
+            "3-torus",
+            vec![("a", 0.5), ("b", 0.5), ("c", 0.5), ("edge", 0.9)],
+            0.7,
+        ),
+    ];
+    for (name, params, half) in cases {
+        let p = problem(name, &params);
+        let (d, k) = (p.dim(), isomesh::expr::ImplicitFunction::codim(&p.system));
+        let tri = p.triangulation.build(d).unwrap();
+        let plan = TilePlan::new(&tri, k, &cube(d, half)).unwrap();
+        let options = GpuOptions {
+            precision: Some(Precision::F64),
+            device_values: true,
+            ..GpuOptions::default()
+        };
+        let oracle = GpuOracle::with_options(reopen(), &p.system, options).unwrap();
+        let mut device = Vec::new();
+        oracle
+            .scan_tiles(&tri, &plan, &mut |_, found| {
+                device.push(found);
+                Ok(true)
+            })
+            .unwrap();
+        assert_eq!(device.len(), plan.tiles.len(), "{name}");
+        let (a, b) = tri.affine_map();
+        let rules = Rules::<f64>::new(&Precision::F64.accuracy());
+        let place = |u: &[i32]| {
+            let mut x = vec![Cv::exact(0.0); d];
+            lattice_point(&rules, &a, &b, u, &mut x);
+            let within = |bx: &[[f64; 2]]| {
+                x.iter()
+                    .zip(bx)
+                    .all(|(c, [lo, hi])| c.v + c.e >= *lo && c.v - c.e <= *hi)
+            };
+            if !within(&plan.far) {
+                Place::Out
+            } else if within(&plan.near) {
+                Place::Near
+            } else {
+                Place::Far
+            }
+        };
+        let mut records = 0;
+        for (t, tile) in plan.tiles.iter().enumerate() {
+            let twin = twin_tile_with(
+                &plan,
+                tile,
+                place,
+                |lattice, out| oracle.eval_certified(&tri, lattice, out),
+                |values, bounds, rows, out| {
+                    let n = k + 1;
+                    let mut solver = CertifiedSolver::<f64>::new(k);
+                    for (row, o) in rows.chunks_exact(n).zip(out.iter_mut()) {
+                        let (mut l, mut e) = (vec![1.0; n * n], vec![0.0; n * n]);
+                        for (j, &v) in row.iter().enumerate() {
+                            for c in 0..k {
+                                l[(c + 1) * n + j] = values[v as usize * k + c];
+                                e[(c + 1) * n + j] = bounds[v as usize * k + c];
+                            }
+                        }
+                        let known = e.iter().all(|x| x.is_finite());
+                        let mut lambda = vec![0.0; n];
+                        *o = if known {
+                            solver.solve(&l, &e, &mut lambda)
+                        } else {
+                            UNCERTAIN
+                        };
+                    }
+                    Ok(())
+                },
+            )
+            .unwrap();
+            let mut got = device[t].clone();
+            let mut sorted: Vec<&[u32]> = got.records.chunks_exact(k + 2).collect();
+            sorted.sort_unstable();
+            got.records = sorted.concat();
+            records += twin.records.len() / (k + 2);
+            let what = format!("{name}: tile {t} ({tile:?})");
+            assert_eq!(got.candidates, twin.candidates, "{what}: candidates");
+            assert_eq!(got.unknown, twin.unknown, "{what}: unknown vertices");
+            let first_difference = got
+                .records
+                .chunks(k + 2)
+                .zip(twin.records.chunks(k + 2))
+                .find(|(a, b)| a != b);
+            assert_eq!(first_difference, None, "{what}: device, twin record");
+            assert_eq!(got.records.len(), twin.records.len(), "{what}: records");
+        }
+        assert!(records > 50, "{name}: {records} records");
+    }
+}
+
+/// The device-resident scan moves at most a byte per lattice vertex up and 64 bytes per
+/// candidate the device left open back (the torus at edge 0.02).
+#[test]
+fn the_resident_scan_moves_little_between_host_and_device() {
+    let Some(g) = gpu("the_resident_scan_moves_little_between_host_and_device") else {
+        return;
+    };
+    let modes = precisions(&g);
+    drop(g);
+    let p = problem("torus", &[("edge", 0.02)]);
+    let tri = p.triangulation.build(3).unwrap();
+    let bbox = vec![[-1.5, 1.5], [-1.5, 1.5], [-0.5, 0.5]];
+    let plan = TilePlan::new(&tri, 1, &bbox).unwrap();
+    for precision in modes {
+        let options = GpuOptions {
+            precision,
+            device_values: true,
+            ..GpuOptions::default()
+        };
+        let oracle = GpuOracle::with_options(reopen(), &p.system, options).unwrap();
+        let (mut open, mut vertices) = (0u64, 0u64);
+        oracle
+            .scan_tiles(&tri, &plan, &mut |t, found| {
+                open += (found.records.len() / 3) as u64;
+                vertices += plan.tiles[t].vertices() as u64;
+                Ok(true)
+            })
+            .unwrap();
+        let st = oracle.stats();
+        let what = format!("{precision:?}: {open} open, {vertices} vertices, {st:?}");
+        assert!(open > 100_000, "{what}");
+        assert!(st.upload_bytes <= vertices, "{what}");
+        assert!(st.readback_bytes <= 64 * open, "{what}");
+        eprintln!(
+            "{precision:?}: {:.4} bytes up per lattice vertex, {:.1} back per open candidate",
+            st.upload_bytes as f64 / vertices as f64,
+            st.readback_bytes as f64 / open as f64
+        );
     }
 }
 

@@ -69,9 +69,10 @@ pub struct TraceArgs {
     /// 0: whole levels). The result does not depend on it.
     #[arg(long, allow_hyphen_values = true, value_parser = parse_count::<usize>)]
     pub level_slice: Option<usize>,
-    /// GPU backend, --exhaustive: evaluate f on the device with certified bounds and on the
-    /// CPU only at the vertices of simplices the device found crossed or could not decide.
-    /// The result does not depend on it.
+    /// GPU backend, --exhaustive: the scan stays on the device (d <= 8), tile by tile: f
+    /// evaluated there with certified bounds, candidates and certified verdicts, and only the
+    /// candidates it could not rule out sent back, where the CPU evaluates f at their
+    /// vertices and decides them. The result does not depend on it.
     #[arg(long)]
     pub device_values: bool,
     /// Worker threads (default: all cores).

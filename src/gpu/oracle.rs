@@ -32,6 +32,7 @@ use crate::error::{Error, Result};
 use crate::expr::ImplicitFunction;
 use crate::report::BackendInfo;
 use crate::trace::scan::candidates::{candidates, Candidates};
+use crate::trace::scan::tiles::{TileFound, TilePlan};
 use crate::trace::{CpuOracle, Decide, Decisions, DeviceValues, Evaluate, Oracle, Scan, ScanGrid};
 use crate::triangulation::Triangulation;
 
@@ -43,11 +44,16 @@ mod perturb;
 mod scan;
 mod solve;
 mod solve_certified;
+mod tiles;
 
 use device::{pipeline, STAGES};
 pub use scan::{scan_shader, MAX_GPU_SCAN_DIM, SCAN_WGSL};
 pub use solve::{solve_shader, SOLVE_WGSL};
 pub use solve_certified::{solve_certified_shader, SOLVE_CERTIFIED_WGSL};
+pub use tiles::{
+    tile_certify_shader, tile_scan_shader, tile_values_shader, TILE_CERTIFY_WGSL, TILE_SCAN_WGSL,
+    TILE_VALUES_WGSL,
+};
 
 /// Counters of a GPU oracle.
 #[derive(Clone, Copy, Debug, Default)]
@@ -96,6 +102,12 @@ pub struct GpuOracle<'f> {
     certified: OnceLock<wgpu::ComputePipeline>,
     /// The certified solve shader, built on first use.
     solve_certified: OnceLock<wgpu::ComputePipeline>,
+    /// The device-resident scan's three stages, built on first use,
+    tile_values: OnceLock<wgpu::ComputePipeline>,
+    tile_scan: OnceLock<wgpu::ComputePipeline>,
+    tile_certify: OnceLock<wgpu::ComputePipeline>,
+    /// and the map its tiles share (A, b, the box of scanned bases).
+    tile_map: Mutex<Option<wgpu::Buffer>>,
     /// Scan candidates per 2^16 cubes in the last dispatch, to size the next one's output.
     scan_density: AtomicU64,
     /// Most bytes per storage binding ([`GpuOracle::limit_binding`]).
@@ -135,10 +147,10 @@ pub struct GpuOptions {
     /// measured no gain on lavapipe, whose device work runs on the CPU's cores; slices are
     /// meant for a hardware GPU whose waits are long.
     pub level_slice: usize,
-    /// The exhaustive scan evaluates f on the device with certified bounds, takes the
-    /// device's certified verdicts, and evaluates f on the CPU only at the vertices of the
-    /// simplices the device found crossed or could not decide (`trace::scan::device_values`).
-    /// Off by default.
+    /// The exhaustive scan stays on the device (`trace::scan::tiles`, d <= 8; above, the
+    /// grid of `trace::scan::device_values`): f evaluated there with certified bounds,
+    /// candidates and certified verdicts, and the CPU evaluates f only at the vertices of
+    /// the simplices the device found crossed or could not decide. Off by default.
     pub device_values: bool,
 }
 
@@ -189,6 +201,10 @@ impl<'f> GpuOracle<'f> {
             scan: OnceLock::new(),
             certified: OnceLock::new(),
             solve_certified: OnceLock::new(),
+            tile_values: OnceLock::new(),
+            tile_scan: OnceLock::new(),
+            tile_certify: OnceLock::new(),
+            tile_map: Mutex::new(None),
             scan_density: AtomicU64::new(1 << 12),
             binding_limit: AtomicU64::new(1 << 30),
             level_slice: options.level_slice,
@@ -367,6 +383,15 @@ impl DeviceValues for GpuOracle<'_> {
         let got = self.certified_verdicts(values, bounds, simplices)?;
         verdicts.copy_from_slice(&got);
         Ok(())
+    }
+
+    fn scan_tiles(
+        &self,
+        tri: &Triangulation,
+        plan: &TilePlan,
+        each: &mut dyn FnMut(usize, TileFound) -> Result<bool>,
+    ) -> Result<()> {
+        self.scan_tiles_on_device(tri, plan, each)
     }
 }
 

@@ -337,6 +337,16 @@ pub fn emit_certified_function(prog: &Program, name: &str, p: Precision) -> Resu
 
 /// The certified vertex-evaluation shader for `prog` (`shaders/eval_certified.wgsl`), validated.
 pub fn certified_shader(prog: &Program, p: Precision) -> Result<String> {
+    let mut src = certified_prelude(prog, p)?;
+    src.push_str(EVAL_CERTIFIED_WGSL);
+    validate(&src, p)?;
+    Ok(src)
+}
+
+/// What a shader of certified values of f starts with: `real`, `DIM`, `OUTS`, the CB_*
+/// constants, `LATTICE_FACTOR`, the device primitives, `shaders/certified.wgsl`,
+/// `isomesh_fc` and the stage prelude.
+pub(crate) fn certified_prelude(prog: &Program, p: Precision) -> Result<String> {
     let acc = p.accuracy();
     let d = prog.dim();
     let mut src = String::new();
@@ -356,8 +366,6 @@ pub fn certified_shader(prog: &Program, p: Precision) -> Result<String> {
     src.push_str(CERTIFIED_WGSL);
     src.push_str(&emit_certified_function(prog, "isomesh_fc", p)?);
     src.push_str(&stage_prelude());
-    src.push_str(EVAL_CERTIFIED_WGSL);
-    validate(&src, p)?;
     Ok(src)
 }
 

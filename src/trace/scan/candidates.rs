@@ -158,7 +158,13 @@ pub fn cube_candidates(grid: &ScanGrid, cube: usize, rows: &mut CornerRows, out:
 
 /// The passing chains of one cube whose corners' storage indices are `corner`; `sup` is
 /// scratch of the same length.
-fn chains(codes: &[u32], k: usize, corner: &[u32], sup: &mut [u32], out: &mut Candidates) {
+pub(crate) fn chains(
+    codes: &[u32],
+    k: usize,
+    corner: &[u32],
+    sup: &mut [u32],
+    out: &mut Candidates,
+) {
     let corners = corner.len();
     let d = corners.trailing_zeros() as usize;
     let mask = pass_mask(k);

@@ -163,17 +163,13 @@ impl ScanGrid {
 
 /// Bytes per grid vertex: f's k values (and their bounds, with device values), the sign
 /// code and the coordinates while they are evaluated.
-fn vertex_bytes(ctx: &TraceContext) -> u64 {
-    let per_value = if ctx.oracle.scans().device_values().is_some() {
-        16
-    } else {
-        8
-    };
+fn vertex_bytes(ctx: &TraceContext, device: bool) -> u64 {
+    let per_value = if device { 16 } else { 8 };
     ctx.k as u64 * per_value + 12
 }
 
 /// The rows of lattice vertices whose position lies in `near` (a grown box).
-fn near_rows(ctx: &TraceContext, near: &[[f64; 2]]) -> Result<ScanGrid> {
+fn near_rows(ctx: &TraceContext, near: &[[f64; 2]], device: bool) -> Result<ScanGrid> {
     let d = ctx.d;
     let (lo, hi) = lattice_bounds(ctx.tri, near);
     let n: Vec<usize> = lo
@@ -207,7 +203,7 @@ fn near_rows(ctx: &TraceContext, near: &[[f64; 2]]) -> Result<ScanGrid> {
     let log_volume: f64 = near.iter().map(|[lo, hi]| (hi - lo).log10()).sum();
     let log_estimate =
         crate::linalg::Lu::new(&a, d).map_or(f64::INFINITY, |lu| log_volume - lu.abs_det().log10());
-    let log_bytes = log_estimate + (vertex_bytes(ctx) as f64).log10();
+    let log_bytes = log_estimate + (vertex_bytes(ctx, device) as f64).log10();
     let estimate = 10f64.powf(log_estimate);
     if !(log_bytes <= (ctx.max_memory as f64).log10() && estimate < u32::MAX as f64) {
         let bytes = if log_bytes < 18.0 {
@@ -272,7 +268,7 @@ fn near_rows(ctx: &TraceContext, near: &[[f64; 2]]) -> Result<ScanGrid> {
             .collect()
     };
     let total: usize = spans.iter().map(|s| s.2 as usize).sum();
-    let need = total as u64 * vertex_bytes(ctx) + spans.len() as u64 * 32;
+    let need = total as u64 * vertex_bytes(ctx, device) + spans.len() as u64 * 32;
     if need > ctx.max_memory {
         return Err(Error::Trace(format!(
             "the exhaustive scan of this box needs {total} lattice vertices, about {}, over \
@@ -456,6 +452,19 @@ impl<'a> RowWalk<'a> {
 /// k-simplex that can meet the box is based at one of those, and its cube's corners lie in
 /// the grid).
 pub(crate) fn build(ctx: &TraceContext, bbox: &[[f64; 2]]) -> Result<ScanGrid> {
+    build_with(ctx, bbox, ctx.oracle.scans().device_values())
+}
+
+/// The scan's grid for `bbox` with the CPU's values of f, whatever the oracle.
+pub(crate) fn build_on_cpu(ctx: &TraceContext, bbox: &[[f64; 2]]) -> Result<ScanGrid> {
+    build_with(ctx, bbox, None)
+}
+
+fn build_with(
+    ctx: &TraceContext,
+    bbox: &[[f64; 2]],
+    device: Option<&dyn crate::trace::DeviceValues>,
+) -> Result<ScanGrid> {
     let (d, k) = (ctx.d, ctx.k);
     if d > MAX_SCAN_DIM {
         return Err(Error::Trace(format!(
@@ -466,7 +475,11 @@ pub(crate) fn build(ctx: &TraceContext, bbox: &[[f64; 2]]) -> Result<ScanGrid> {
     let grown =
         |r: f64| -> Vec<[f64; 2]> { bbox.iter().map(|[lo, hi]| [lo - r, hi + r]).collect() };
     let near_base = grown(edge);
-    let mut grid = near_rows(ctx, &grown(2.0 * edge + 1e-9 * (1.0 + edge)))?;
+    let mut grid = near_rows(
+        ctx,
+        &grown(2.0 * edge + 1e-9 * (1.0 + edge)),
+        device.is_some(),
+    )?;
     let total = grid.total;
     if total >= u32::MAX as usize {
         return Err(Error::Trace(format!(
@@ -474,7 +487,6 @@ pub(crate) fn build(ctx: &TraceContext, bbox: &[[f64; 2]]) -> Result<ScanGrid> {
              smaller box or a larger edge"
         )));
     }
-    let device = ctx.oracle.scans().device_values();
     grid.values = vec![0.0; total * k];
     if device.is_some() {
         grid.bounds = vec![0.0; total * k];

@@ -20,6 +20,10 @@ pub mod device_values;
 #[cfg(not(feature = "internals"))]
 pub(crate) mod device_values;
 mod grid;
+#[cfg(feature = "internals")]
+pub mod tiles;
+#[cfg(not(feature = "internals"))]
+pub(crate) mod tiles;
 
 pub use candidates::Candidates;
 pub use grid::ScanGrid;
@@ -36,6 +40,9 @@ use std::time::Instant;
 
 /// Largest d for the scan (each cube holds 2^d corners).
 pub const MAX_SCAN_DIM: usize = 16;
+/// Largest d the device-resident scan takes (each cube holds 2^d corners); above it, the
+/// grid's scan with device values.
+pub const MAX_TILED_DIM: usize = 8;
 /// Candidates per batch the batch size aims at.
 const TARGET_CANDIDATES: usize = 1 << 20;
 /// Fewest and most vertices (cube bases) per batch.
@@ -52,6 +59,11 @@ pub(crate) struct Scanned<const W: usize> {
 /// Scans the box. Interrupted (Ctrl-C) between batches, it returns what it found so far,
 /// with `stopped` set.
 pub(crate) fn scan<const W: usize>(ctx: &TraceContext, bbox: &[[f64; 2]]) -> Result<Scanned<W>> {
+    if let Some(device) = ctx.oracle.scans().device_values() {
+        if ctx.d <= MAX_TILED_DIM {
+            return tiles::scan(ctx, bbox, device);
+        }
+    }
     let k = ctx.k;
     let grid = match grid::build(ctx, bbox) {
         // Interrupted while f is evaluated on the grid: nothing found yet, kept as such.

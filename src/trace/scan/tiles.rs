@@ -1,0 +1,551 @@
+// Index loops over lattice axes read as the coordinates they are.
+#![allow(clippy::needless_range_loop)]
+//! The exhaustive scan resident on a device: the box is cut into tiles of lattice cubes
+//! ([`TilePlan`]). Per tile the device evaluates f with certified bounds at the tile's
+//! vertices, keeps the values and sign codes in its own memory, generates the candidate
+//! k-simplices, decides them with the certified solve and sends back only those it could not
+//! prove outside ([`TileFound`]: a few words each). The CPU then evaluates f at the vertices
+//! of those candidates alone, keeps exactly its own candidates among them and decides them
+//! from its own values, so S, its order and its points are the CPU backend's whatever the
+//! device's rounding; the CPU's work follows the output, not the lattice.
+//!
+//! The device's part is [`DeviceValues::scan_tiles`]; its CPU twin is [`twin_tile`].
+
+use rayon::prelude::*;
+
+use super::candidates::{chains, pass_mask, sign_code, Candidates, BASE};
+use super::device_values::bounded_sign_code;
+use super::Scanned;
+use crate::cpu::batch;
+use crate::cpu::certificate::{CROSSED, OUTSIDE};
+use crate::cpu::solve::Status;
+use crate::error::{Error, Result};
+use crate::trace::region::{in_box, lattice_bounds};
+use crate::trace::table::{Key, Table};
+use crate::trace::{DeviceValues, StopReason, TraceContext, TraceStats};
+use crate::triangulation::{Simplex, Triangulation, MAX_DIM};
+
+/// The bit of a sign code whose vertex's value the device does not know (bounds too wide
+/// or not finite): both sign bits are then set, and no certified verdict uses the vertex.
+pub const UNKNOWN: u32 = 1 << 30;
+/// Lattice vertices per tile the planner aims at.
+pub const TILE_VERTICES: usize = 1 << 17;
+/// Most tiles a scan may take.
+const MAX_TILES: u128 = 1 << 24;
+
+/// The tiles of a device-resident scan, and the boxes its bases are tested against.
+#[derive(Clone, Debug)]
+pub struct TilePlan {
+    /// The ambient dimension d.
+    pub d: usize,
+    /// The codimension k.
+    pub k: usize,
+    /// The box the device scans the cubes based in: the scan's box grown by one edge, then
+    /// padded outward, so that it holds every base the CPU scans whatever the rounding.
+    pub near: Vec<[f64; 2]>,
+    /// `near` grown by one more edge, padded: every corner of a scanned cube lies in it, so
+    /// f is not evaluated at the vertices outside (their sign code is 0).
+    pub far: Vec<[f64; 2]>,
+    /// The scan's box grown by one edge, as the CPU's grid tests its bases.
+    base_box: Vec<[f64; 2]>,
+    /// The tiles, in order.
+    pub tiles: Vec<Tile>,
+}
+
+/// A block of lattice vertices: `counts[j]` along axis j from `origin`; the cubes based at
+/// its vertices off the top layers are its own.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Tile {
+    /// The lattice vertex with the lowest coordinates.
+    pub origin: Vec<i32>,
+    /// Vertices per axis (cubes per axis plus one).
+    pub counts: Vec<u32>,
+}
+
+impl Tile {
+    /// The vertices of the block.
+    pub fn vertices(&self) -> usize {
+        self.counts.iter().map(|&n| n as usize).product()
+    }
+
+    /// The cubes the tile scans.
+    pub fn cubes(&self) -> usize {
+        self.counts.iter().map(|&n| n as usize - 1).product()
+    }
+
+    /// The step of vertex indices along axis j.
+    pub fn stride(&self, j: usize) -> u32 {
+        self.counts[..j].iter().product()
+    }
+
+    /// The lattice coordinates of vertex `i` (digits in the radix `counts`, axis 0 first).
+    pub fn coords(&self, mut i: u32, out: &mut [i32]) {
+        for (j, &n) in self.counts.iter().enumerate() {
+            out[j] = self.origin[j] + (i % n) as i32;
+            i /= n;
+        }
+    }
+
+    /// The vertex index of the corner with set `s` (bit j: +1 on axis j) of the cube based
+    /// at vertex `base`.
+    pub fn corner(&self, base: u32, s: u32) -> u32 {
+        (0..self.counts.len())
+            .filter(|&j| s >> j & 1 == 1)
+            .map(|j| self.stride(j))
+            .sum::<u32>()
+            + base
+    }
+}
+
+/// What a device sends back for one tile.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct TileFound {
+    /// Per candidate the device could not prove outside, k + 2 words: the vertex index of
+    /// its cube's base, its corner sets S_1 < .. < S_k, and the verdict
+    /// ([`CROSSED`] or [`UNCERTAIN`](crate::cpu::certificate::UNCERTAIN)); in any order.
+    pub records: Vec<u32>,
+    /// Candidates the tile held (those whose vertices' sign codes admit a zero).
+    pub candidates: u64,
+    /// Vertices whose value the device did not know.
+    pub unknown: u64,
+}
+
+impl TilePlan {
+    /// The tiles of the exhaustive scan of `bbox` on `tri`, of about [`TILE_VERTICES`]
+    /// vertices each, leaving out those whose cubes lie wholly outside the box grown by an
+    /// edge.
+    pub fn new(tri: &Triangulation, k: usize, bbox: &[[f64; 2]]) -> Result<Self> {
+        let d = tri.dim();
+        let edge = tri.edge();
+        let base_box: Vec<[f64; 2]> = bbox.iter().map(|[l, h]| [l - edge, h + edge]).collect();
+        let near: Vec<[f64; 2]> = base_box
+            .iter()
+            .map(|&[l, h]| {
+                let pad = 1e-7 * (l.abs().max(h.abs()) + edge);
+                [l - pad, h + pad]
+            })
+            .collect();
+        let far: Vec<[f64; 2]> = near
+            .iter()
+            .map(|&[l, h]| {
+                let pad = 1e-7 * (l.abs().max(h.abs()) + edge);
+                [l - edge - pad, h + edge + pad]
+            })
+            .collect();
+        let (lo, hi) = lattice_bounds(tri, &near);
+        // Cubes per axis, and per tile along each axis.
+        let span: Vec<u128> = lo
+            .iter()
+            .zip(&hi)
+            .map(|(l, h)| (h.saturating_sub(*l) as u128).saturating_add(1))
+            .collect();
+        let side = ((TILE_VERTICES as f64).powf(1.0 / d as f64).floor() as u128).max(2) - 1;
+        let per: Vec<u128> = span.iter().map(|&s| s.clamp(1, side)).collect();
+        let count: u128 = span
+            .iter()
+            .zip(&per)
+            .try_fold(1u128, |a, (s, p)| a.checked_mul(s.div_ceil(*p)))
+            .unwrap_or(u128::MAX);
+        let reach = lo
+            .iter()
+            .zip(&hi)
+            .all(|(l, h)| l.unsigned_abs() < 1 << 30 && h.unsigned_abs() < 1 << 30);
+        if count > MAX_TILES || !reach {
+            let vertices: f64 = span.iter().map(|&s| s as f64).product();
+            return Err(Error::Trace(format!(
+                "the exhaustive scan of this box needs about {vertices:.3e} lattice vertices, \
+                 over what a scan takes: use a smaller box or a larger edge"
+            )));
+        }
+        let (a, b) = tri.affine_map();
+        let mut tiles = Vec::new();
+        let mut digit = vec![0u128; d];
+        'tiles: loop {
+            let origin: Vec<i64> = (0..d).map(|j| lo[j] + (digit[j] * per[j]) as i64).collect();
+            let counts: Vec<u32> = (0..d)
+                .map(|j| (per[j].min(span[j] - digit[j] * per[j]) + 1) as u32)
+                .collect();
+            // The tile's vertices in R^d lie in the box of its corners' extremes.
+            let meets = (0..d).all(|r| {
+                let (mut min, mut max) = (b[r], b[r]);
+                for c in 0..d {
+                    let ends = [
+                        a[r * d + c] * origin[c] as f64,
+                        a[r * d + c] * (origin[c] + counts[c] as i64 - 1) as f64,
+                    ];
+                    min += ends[0].min(ends[1]);
+                    max += ends[0].max(ends[1]);
+                }
+                let slack = 1e-9 * (min.abs().max(max.abs()) + edge);
+                max + slack >= near[r][0] && min - slack <= near[r][1]
+            });
+            if meets {
+                tiles.push(Tile {
+                    origin: origin.iter().map(|&o| o as i32).collect(),
+                    counts,
+                });
+            }
+            for j in 0..d {
+                digit[j] += 1;
+                if digit[j] * per[j] < span[j] {
+                    continue 'tiles;
+                }
+                digit[j] = 0;
+            }
+            break;
+        }
+        Ok(TilePlan {
+            d,
+            k,
+            near,
+            far,
+            base_box,
+            tiles,
+        })
+    }
+}
+
+/// Where a tile's vertex lies, as the device tests it from its coordinates (and their
+/// bounds): in `near` (the cube based there is scanned, off the top layers), in `far` (f is
+/// evaluated there), or neither.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Place {
+    /// A scanned base.
+    Near,
+    /// A possible corner of a scanned cube.
+    Far,
+    /// Neither: no candidate reads it.
+    Out,
+}
+
+/// The CPU twin of the device's tile stages (`shaders/tile_values.wgsl`,
+/// `shaders/tile_scan.wgsl`): the place of each vertex from `place` (lattice coordinates),
+/// certified values from `eval` (as [`DeviceValues::eval_certified`]) at the vertices in
+/// place, candidates as the CPU generates them, and verdicts from `verdicts` (as
+/// [`DeviceValues::decide_certified`]); the records in order of base, then chain.
+pub fn twin_tile_with(
+    plan: &TilePlan,
+    tile: &Tile,
+    place: impl Fn(&[i32]) -> Place + Sync,
+    eval: impl FnOnce(&[i32], &mut [f64]) -> Result<()>,
+    verdicts: impl FnOnce(&[f64], &[f64], &[u32], &mut [u32]) -> Result<()>,
+) -> Result<TileFound> {
+    let (d, k) = (plan.d, plan.k);
+    let count = tile.vertices();
+    let mut lattice = vec![0i32; count * d];
+    lattice
+        .par_chunks_mut(d)
+        .enumerate()
+        .for_each(|(i, u)| tile.coords(i as u32, u));
+    let places: Vec<Place> = lattice.par_chunks(d).map(&place).collect();
+    let inside: Vec<usize> = (0..count).filter(|&i| places[i] != Place::Out).collect();
+    let sub: Vec<i32> = inside
+        .iter()
+        .flat_map(|&i| lattice[i * d..(i + 1) * d].iter().copied())
+        .collect();
+    let mut pairs = vec![0.0; inside.len() * k * 2];
+    eval(&sub, &mut pairs)?;
+    let (mut values, mut bounds) = (vec![0.0; count * k], vec![0.0; count * k]);
+    for (j, &i) in inside.iter().enumerate() {
+        for c in 0..k {
+            values[i * k + c] = pairs[(j * k + c) * 2];
+            bounds[i * k + c] = pairs[(j * k + c) * 2 + 1];
+        }
+    }
+    let codes: Vec<u32> = (0..count)
+        .into_par_iter()
+        .map(|i| {
+            if places[i] == Place::Out {
+                return 0;
+            }
+            let (f, e) = (&values[i * k..(i + 1) * k], &bounds[i * k..(i + 1) * k]);
+            let known = f.iter().zip(e).all(|(v, e)| v.is_finite() && e.is_finite());
+            let mut code = bounded_sign_code(f, e);
+            if !known {
+                code |= UNKNOWN | pass_mask(k);
+            }
+            let mut top = false;
+            let mut rest = i as u32;
+            for &n in &tile.counts {
+                top |= rest % n + 1 == n;
+                rest /= n;
+            }
+            if !top && places[i] == Place::Near {
+                code |= BASE;
+            }
+            code
+        })
+        .collect();
+    let mut cands = Candidates::default();
+    let mut corner = vec![0u32; 1 << d];
+    let mut sup = vec![0u32; 1 << d];
+    let mut bases = Vec::new();
+    for i in 0..count as u32 {
+        if codes[i as usize] & BASE == 0 {
+            continue;
+        }
+        for (s, c) in corner.iter_mut().enumerate() {
+            *c = tile.corner(i, s as u32);
+        }
+        let before = cands.chains.len();
+        chains(&codes, k, &corner, &mut sup, &mut cands);
+        bases.extend(std::iter::repeat_n(i, (cands.chains.len() - before) / k));
+    }
+    let m = bases.len();
+    let mut verdict = vec![OUTSIDE; m];
+    verdicts(&values, &bounds, &cands.rows, &mut verdict)?;
+    let mut records = Vec::new();
+    for i in 0..m {
+        let row = &cands.rows[i * (k + 1)..(i + 1) * (k + 1)];
+        if verdict[i] == OUTSIDE && row.iter().all(|&v| codes[v as usize] & UNKNOWN == 0) {
+            continue;
+        }
+        let v = if verdict[i] == OUTSIDE {
+            crate::cpu::certificate::UNCERTAIN
+        } else {
+            verdict[i]
+        };
+        records.push(bases[i]);
+        records.extend_from_slice(&cands.chains[i * k..(i + 1) * k]);
+        records.push(v);
+    }
+    Ok(TileFound {
+        records,
+        candidates: m as u64,
+        unknown: codes.iter().filter(|&&c| c & UNKNOWN != 0).count() as u64,
+    })
+}
+
+/// [`twin_tile_with`] on `device`'s certified values and verdicts, with the places tested in
+/// f64 against the plan's padded boxes: what [`DeviceValues::scan_tiles`] does by default.
+pub fn twin_tile<D: DeviceValues + ?Sized>(
+    device: &D,
+    tri: &Triangulation,
+    plan: &TilePlan,
+    tile: &Tile,
+) -> Result<TileFound> {
+    twin_tile_with(
+        plan,
+        tile,
+        |u| {
+            let mut x = [0.0; MAX_DIM];
+            tri.vertex_coords(u, &mut x[..plan.d]);
+            if in_box(&plan.near, &x[..plan.d]) {
+                Place::Near
+            } else if in_box(&plan.far, &x[..plan.d]) {
+                Place::Far
+            } else {
+                Place::Out
+            }
+        },
+        |lattice, out| device.eval_certified(tri, lattice, out),
+        |values, bounds, rows, out| device.decide_certified(values, bounds, rows, out),
+    )
+}
+
+/// The vertices the CPU evaluated f at, and their values, gathered over the tiles.
+#[derive(Default)]
+struct Evaluated {
+    lattice: Vec<i32>,
+    values: Vec<f64>,
+}
+
+/// The exhaustive scan of `bbox` resident on `device`: the tiles' records decided on the
+/// CPU. Interrupted (Ctrl-C) between tiles, it returns what it found so far.
+pub(crate) fn scan<const W: usize>(
+    ctx: &TraceContext,
+    bbox: &[[f64; 2]],
+    device: &dyn DeviceValues,
+) -> Result<Scanned<W>> {
+    let plan = TilePlan::new(ctx.tri, ctx.k, bbox)?;
+    let mut stats = TraceStats::default();
+    let mut found: Vec<Key<W>> = Vec::new();
+    let mut evaluated = Evaluated::default();
+    let mut unknown = 0;
+    device.scan_tiles(ctx.tri, &plan, &mut |t, got| {
+        if ctx.interrupted() {
+            stats.stopped = Some(StopReason::Interrupted);
+            return Ok(false);
+        }
+        let tile = &plan.tiles[t];
+        stats.vertices += tile.vertices() as u64;
+        stats.device_vertex_evaluations += tile.vertices() as u64;
+        unknown += got.unknown;
+        settle(
+            ctx,
+            &plan,
+            tile,
+            &got,
+            &mut stats,
+            &mut found,
+            &mut evaluated,
+        )?;
+        Ok(true)
+    })?;
+    found.par_sort_unstable();
+    if found.is_empty() && stats.non_finite == 0 && unknown > 0 && stats.stopped.is_none() {
+        // Nothing found and the device did not know f somewhere: count where the CPU's f
+        // is NaN or infinite, as the CPU's scan reports it.
+        let grid = super::grid::build_on_cpu(ctx, bbox)?;
+        stats.non_finite = grid.values().par_iter().filter(|v| !v.is_finite()).count() as u64;
+    }
+    let mut table = Table::fixed();
+    for key in &found {
+        table.insert(key)?;
+    }
+    Ok(Scanned {
+        table,
+        stats,
+        cpu_values: Some(evaluated.into_unique(ctx.d, ctx.k)),
+    })
+}
+
+impl Evaluated {
+    /// The vertices once each (tiles share their borders), sorted by coordinates.
+    fn into_unique(self, d: usize, k: usize) -> (Vec<i32>, Vec<f64>) {
+        let n = self.lattice.len() / d.max(1);
+        let mut order: Vec<usize> = (0..n).collect();
+        let row = |i: usize| &self.lattice[i * d..(i + 1) * d];
+        order.par_sort_unstable_by(|&a, &b| row(a).cmp(row(b)));
+        order.dedup_by(|a, b| row(*a) == row(*b));
+        let lattice = order.iter().flat_map(|&i| row(i).iter().copied()).collect();
+        let values = order
+            .iter()
+            .flat_map(|&i| self.values[i * k..(i + 1) * k].iter().copied())
+            .collect();
+        (lattice, values)
+    }
+}
+
+/// Decides one tile's records on the CPU: f at their vertices, the CPU's own candidates
+/// among them (those its sign codes pass, based in its box), their exact verdicts, and the
+/// keys of the crossed ones whose point lies in the domain, appended to `found`.
+fn settle<const W: usize>(
+    ctx: &TraceContext,
+    plan: &TilePlan,
+    tile: &Tile,
+    got: &TileFound,
+    stats: &mut TraceStats,
+    found: &mut Vec<Key<W>>,
+    evaluated: &mut Evaluated,
+) -> Result<()> {
+    let (d, k, n) = (ctx.d, ctx.k, ctx.k + 1);
+    let mut records: Vec<&[u32]> = got.records.chunks_exact(k + 2).collect();
+    records.par_sort_unstable();
+    let rows: Vec<u32> = records
+        .iter()
+        .flat_map(|r| std::iter::once(r[0]).chain(r[1..=k].iter().map(|&s| tile.corner(r[0], s))))
+        .collect();
+    // f on the CPU at each vertex once.
+    let mut uniq = rows.clone();
+    uniq.par_sort_unstable();
+    uniq.dedup();
+    let mut lattice = vec![0i32; uniq.len() * d];
+    lattice
+        .par_chunks_mut(d)
+        .zip(&uniq)
+        .for_each(|(u, &v)| tile.coords(v, u));
+    let mut values = vec![0.0; uniq.len() * k];
+    ctx.oracle
+        .values()
+        .eval_vertices(ctx.tri, &lattice, &mut values)?;
+    stats.cpu_vertex_evaluations += uniq.len() as u64;
+    let slot = |v: u32| uniq.binary_search(&v).expect("a record's vertex") as u32;
+    let code = |s: u32| sign_code(&values[s as usize * k..(s as usize + 1) * k]);
+    // The CPU's own candidates among the records.
+    let mask = pass_mask(k);
+    let mut kept = Vec::with_capacity(records.len());
+    let mut sub = Vec::with_capacity(rows.len());
+    for (i, r) in records.iter().enumerate() {
+        let row: Vec<u32> = rows[i * n..(i + 1) * n].iter().map(|&v| slot(v)).collect();
+        let passes = row.iter().fold(0, |c, &s| c | code(s)) & mask == mask;
+        let mut x = [0.0; MAX_DIM];
+        ctx.tri
+            .vertex_coords(&lattice[row[0] as usize * d..][..d], &mut x[..d]);
+        if passes && in_box(&plan.base_box, &x[..d]) {
+            kept.push(i);
+            sub.extend_from_slice(&row);
+        } else if !passes && r[k + 1] == CROSSED {
+            return Err(contradiction("not a candidate of the CPU"));
+        }
+    }
+    let mut status = vec![Status::Outside; kept.len()];
+    let mut lambda = vec![0.0; kept.len() * n];
+    let exact = batch::decide(k, &values, &sub, &mut status, &mut lambda);
+    for (&i, s) in kept.iter().zip(&status) {
+        if records[i][k + 1] == CROSSED && !s.crossed() {
+            return Err(contradiction(&format!("{s:?}")));
+        }
+    }
+    // Every candidate the device ruled out, and every record the CPU did not keep, is
+    // outside; the kept ones were decided on the CPU.
+    stats.count_decisions(
+        &status,
+        crate::trace::Decisions {
+            exact,
+            on_device: 0,
+        },
+    );
+    let dropped = got.candidates - kept.len() as u64;
+    stats.oracle_calls += dropped;
+    stats.device_decisions += dropped;
+    if stats.zero_region.is_none() && status.contains(&Status::Degenerate) {
+        stats.zero_region = crate::trace::checks::zero_region(
+            ctx.f,
+            &status,
+            &sub,
+            &values,
+            ctx.tri.edge(),
+            |s, x| ctx.tri.vertex_coords(&lattice[s * d..(s + 1) * d], x),
+        );
+    }
+    let hits: Vec<Result<Option<Key<W>>>> = (0..kept.len())
+        .into_par_iter()
+        .filter(|&j| status[j].crossed())
+        .map(|j| {
+            let row = &sub[j * n..(j + 1) * n];
+            let lam = &lambda[j * n..(j + 1) * n];
+            let mut point = [0.0; MAX_DIM];
+            ctx.tri.barycentric_point(
+                lam,
+                |c, out| out.copy_from_slice(&lattice[row[c] as usize * d..][..d]),
+                &mut point[..d],
+            );
+            if !ctx.domain.contains(&point[..d]) {
+                return Ok(None);
+            }
+            let chain = &records[kept[j]][1..=k];
+            let full = (1u64 << d) - 1;
+            let mut parts = [0u64; MAX_DIM + 1];
+            let mut prev = 0;
+            for (c, &s) in chain.iter().enumerate() {
+                parts[c] = s as u64 & !prev;
+                prev = s as u64;
+            }
+            parts[k] = (full & !prev) | (1 << d);
+            let v0 = &lattice[row[0] as usize * d..][..d];
+            let simplex = Simplex::from_masks(v0, &parts[..=k])?;
+            let mut key = [0u64; W];
+            ctx.codec.encode(&simplex, &mut key)?;
+            Ok(Some(key))
+        })
+        .collect();
+    for h in hits {
+        if let Some(key) = h? {
+            found.push(key);
+        }
+    }
+    evaluated.lattice.extend_from_slice(&lattice);
+    evaluated.values.extend_from_slice(&values);
+    Ok(())
+}
+
+/// The error when the CPU contradicts a crossing the device certified: a value bound did
+/// not hold, so the device's other verdicts cannot be trusted either.
+fn contradiction(cpu: &str) -> Error {
+    Error::DeviceBound(format!(
+        "the device certified a candidate of a scan tile as crossed, but the CPU's values \
+         make it {cpu}: a bound of the device's values of f does not hold (rerun without \
+         device values, and report this as a bug)"
+    ))
+}
