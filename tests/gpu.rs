@@ -1291,7 +1291,7 @@ fn gpu_scans_with_device_values_evaluate_on_the_cpu_only_what_the_device_left_op
         let tri = p.triangulation.build(p.dim()).unwrap();
         let bbox = cube(p.dim(), *half);
         let k = isomesh::expr::ImplicitFunction::codim(&p.system);
-        let plan = TilePlan::new(&tri, k, &bbox).unwrap();
+        let plan = TilePlan::new(&tri, k, &bbox, 1 << 30).unwrap();
         for &precision in &modes {
             let perturb = (c % 2 == 1).then_some(c as u64);
             let options = GpuOptions {
@@ -1363,7 +1363,7 @@ fn the_tile_shaders_match_their_cpu_twin() {
         let p = problem(name, &params);
         let (d, k) = (p.dim(), isomesh::expr::ImplicitFunction::codim(&p.system));
         let tri = p.triangulation.build(d).unwrap();
-        let plan = TilePlan::new(&tri, k, &cube(d, half)).unwrap();
+        let plan = TilePlan::new(&tri, k, &cube(d, half), 1 << 30).unwrap();
         let options = GpuOptions {
             precision: Some(Precision::F64),
             device_values: true,
@@ -1458,7 +1458,7 @@ fn the_resident_scan_moves_little_between_host_and_device() {
     let p = problem("torus", &[("edge", 0.02)]);
     let tri = p.triangulation.build(3).unwrap();
     let bbox = vec![[-1.5, 1.5], [-1.5, 1.5], [-0.5, 0.5]];
-    let plan = TilePlan::new(&tri, 1, &bbox).unwrap();
+    let plan = TilePlan::new(&tri, 1, &bbox, 1 << 30).unwrap();
     for precision in modes {
         let options = GpuOptions {
             precision,

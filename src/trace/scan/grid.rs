@@ -14,7 +14,7 @@ use super::MAX_SCAN_DIM;
 use crate::error::{Error, Result};
 use crate::trace::region::{in_box, lattice_bounds};
 use crate::trace::TraceContext;
-use crate::triangulation::MAX_DIM;
+use crate::triangulation::{Triangulation, MAX_DIM};
 
 /// Vertices per evaluation slab.
 const SLAB: usize = 1 << 16;
@@ -194,9 +194,6 @@ fn near_rows(ctx: &TraceContext, near: &[[f64; 2]], device: bool) -> Result<Scan
              smaller box or a larger edge"
         )));
     }
-    let mut zero = vec![0i32; d];
-    let mut origin = vec![0.0; d];
-    ctx.tri.vertex_coords(&zero, &mut origin);
     // Refuse before enumerating: about vol(box) / |det A| vertices, each k values.
     let a = ctx.tri.matrix();
     // In logarithms: the volume and the determinant may each pass f64's range.
@@ -223,50 +220,7 @@ fn near_rows(ctx: &TraceContext, near: &[[f64; 2]], device: bool) -> Result<Scan
             crate::memory::human_bytes(ctx.max_memory)
         )));
     }
-    zero[0] = 1;
-    let mut step = vec![0.0; d];
-    ctx.tri.vertex_coords(&zero, &mut step);
-    for (s, o) in step.iter_mut().zip(&origin) {
-        *s -= o;
-    }
-    // Per row, the u_0 interval where the vertex lies in the grown box.
-    let span = |r: usize, x: &[f64]| -> Option<(usize, i64, u32)> {
-        let (mut t0, mut t1) = (lo[0] as f64, (hi[0] + 1) as f64);
-        for i in 0..d {
-            let [a, b] = near[i];
-            if step[i] == 0.0 {
-                if x[i] < a || x[i] > b {
-                    return None;
-                }
-            } else {
-                let (p, q) = ((a - x[i]) / step[i], (b - x[i]) / step[i]);
-                t0 = t0.max(p.min(q));
-                t1 = t1.min(p.max(q));
-            }
-        }
-        let (s, e) = (t0.ceil() as i64, t1.floor() as i64);
-        (e >= s).then(|| (r, s, (e - s + 1) as u32))
-    };
-    let walk = RowWalk::new(ctx, a, &lo, &n, near);
-    let spans: Vec<(usize, i64, u32)> = if d == 1 {
-        span(0, &origin).into_iter().collect()
-    } else {
-        // The values of the top axis in parallel, each walked depth first: rows come out
-        // sorted by id.
-        let mut s = [0.0; MAX_DIM];
-        s[..d].copy_from_slice(ctx.tri.offset());
-        let (first, last) = walk.values(d - 1, &s).unwrap_or((1, 0));
-        (first..=last)
-            .into_par_iter()
-            .flat_map_iter(|t| {
-                let mut u = [0i64; MAX_DIM];
-                u[d - 1] = t;
-                let mut out = Vec::new();
-                walk.rows(d - 1, &mut u, &s, &mut |id, x| out.extend(span(id, x)));
-                out
-            })
-            .collect()
-    };
+    let spans = row_spans(ctx.tri, near, &lo, &hi, &n);
     let total: usize = spans.iter().map(|s| s.2 as usize).sum();
     let need = total as u64 * vertex_bytes(ctx, device) + spans.len() as u64 * 32;
     if need > ctx.max_memory {
@@ -303,6 +257,65 @@ fn near_rows(ctx: &TraceContext, near: &[[f64; 2]], device: bool) -> Result<Scan
     })
 }
 
+/// The rows of lattice vertices whose position lies in `near`: per row, its id (the
+/// coordinates on axes 1..d-1 in the mixed radix `n[1..]` from `lo`), the first u_0 and the
+/// count, sorted by id. `lo..=hi` bounds the lattice coordinates of those vertices.
+pub(crate) fn row_spans(
+    tri: &Triangulation,
+    near: &[[f64; 2]],
+    lo: &[i64],
+    hi: &[i64],
+    n: &[usize],
+) -> Vec<(usize, i64, u32)> {
+    let d = tri.dim();
+    let mut zero = vec![0i32; d];
+    let mut origin = vec![0.0; d];
+    tri.vertex_coords(&zero, &mut origin);
+    zero[0] = 1;
+    let mut step = vec![0.0; d];
+    tri.vertex_coords(&zero, &mut step);
+    for (s, o) in step.iter_mut().zip(&origin) {
+        *s -= o;
+    }
+    // Per row, the u_0 interval where the vertex lies in the grown box.
+    let span = |r: usize, x: &[f64]| -> Option<(usize, i64, u32)> {
+        let (mut t0, mut t1) = (lo[0] as f64, (hi[0] + 1) as f64);
+        for i in 0..d {
+            let [a, b] = near[i];
+            if step[i] == 0.0 {
+                if x[i] < a || x[i] > b {
+                    return None;
+                }
+            } else {
+                let (p, q) = ((a - x[i]) / step[i], (b - x[i]) / step[i]);
+                t0 = t0.max(p.min(q));
+                t1 = t1.min(p.max(q));
+            }
+        }
+        let (s, e) = (t0.ceil() as i64, t1.floor() as i64);
+        (e >= s).then(|| (r, s, (e - s + 1) as u32))
+    };
+    let walk = RowWalk::new(tri, tri.matrix(), lo, n, near);
+    if d == 1 {
+        return span(0, &origin).into_iter().collect();
+    }
+    // The values of the top axis in parallel, each walked depth first: rows come out sorted
+    // by id.
+    let mut s = [0.0; MAX_DIM];
+    s[..d].copy_from_slice(tri.offset());
+    let (first, last) = walk.values(d - 1, &s).unwrap_or((1, 0));
+    (first..=last)
+        .into_par_iter()
+        .flat_map_iter(|t| {
+            let mut u = [0i64; MAX_DIM];
+            u[d - 1] = t;
+            let mut out = Vec::new();
+            walk.rows(d - 1, &mut u, &s, &mut |id, x| out.extend(span(id, x)));
+            out
+        })
+        .collect()
+}
+
 /// The depth-first walk over the rows that can hold vertices in a box: on each axis from d - 1
 /// down to 1, exactly the values of u_j for which some real u_0..u_{j-1} put x = b + A u in
 /// the box (padded against rounding).
@@ -312,7 +325,7 @@ fn near_rows(ctx: &TraceContext, near: &[[f64; 2]], device: bool) -> Result<Scan
 /// of B, a zonotope. Its facets have the normals n orthogonal to V_j and to d - 1 - j of the
 /// coordinate axes, so the test is n . s in [min n . B, max n . B] for each such n: a slab.
 struct RowWalk<'a> {
-    ctx: &'a TraceContext<'a>,
+    tri: &'a Triangulation,
     a: Vec<f64>,
     lo: &'a [i64],
     n: &'a [usize],
@@ -333,16 +346,16 @@ struct Slab {
 impl<'a> RowWalk<'a> {
     /// The walk for x = b + A u (`a`: A, row-major) over the axis ranges `lo`, `n`.
     fn new(
-        ctx: &'a TraceContext,
+        tri: &'a Triangulation,
         a: Vec<f64>,
         lo: &'a [i64],
         n: &'a [usize],
         near: &'a [[f64; 2]],
     ) -> Self {
-        let d = ctx.d;
+        let d = tri.dim();
         let scale = near
             .iter()
-            .chain(std::iter::once(&[ctx.tri.edge(), 0.0]))
+            .chain(std::iter::once(&[tri.edge(), 0.0]))
             .map(|[l, h]| l.abs().max(h.abs()))
             .fold(1.0, f64::max);
         let pad = 1e-9 * scale;
@@ -376,7 +389,7 @@ impl<'a> RowWalk<'a> {
             })
             .collect();
         RowWalk {
-            ctx,
+            tri,
             a,
             lo,
             n,
@@ -387,7 +400,7 @@ impl<'a> RowWalk<'a> {
     /// The values of u_j (j >= 1) from which the box can be reached, where `s` is b plus the
     /// contribution of the axes above j.
     fn values(&self, j: usize, s: &[f64]) -> Option<(i64, i64)> {
-        let d = self.ctx.d;
+        let d = self.tri.dim();
         let (mut t0, mut t1) = (
             self.lo[j] as f64,
             (self.lo[j] + self.n[j] as i64 - 1) as f64,
@@ -419,7 +432,7 @@ impl<'a> RowWalk<'a> {
         s: &[f64],
         row: &mut dyn FnMut(usize, &[f64]),
     ) {
-        let d = self.ctx.d;
+        let d = self.tri.dim();
         let mut t_s = [0.0; MAX_DIM];
         for r in 0..d {
             t_s[r] = s[r] + self.a[r * d + j] * u[j] as f64;
@@ -434,7 +447,7 @@ impl<'a> RowWalk<'a> {
                 stride *= self.n[i];
             }
             let mut x = [0.0; MAX_DIM];
-            self.ctx.tri.vertex_coords(&v[..d], &mut x[..d]);
+            self.tri.vertex_coords(&v[..d], &mut x[..d]);
             row(id, &x[..d]);
             return;
         }

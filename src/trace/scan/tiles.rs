@@ -20,6 +20,9 @@ use crate::cpu::batch;
 use crate::cpu::certificate::{CROSSED, OUTSIDE};
 use crate::cpu::solve::Status;
 use crate::error::{Error, Result};
+use std::collections::BTreeMap;
+
+use super::grid::row_spans;
 use crate::trace::region::{in_box, lattice_bounds};
 use crate::trace::table::{Key, Table};
 use crate::trace::{DeviceValues, StopReason, TraceContext, TraceStats};
@@ -28,8 +31,13 @@ use crate::triangulation::{Simplex, Triangulation, MAX_DIM};
 /// The bit of a sign code whose vertex's value the device does not know (bounds too wide
 /// or not finite): both sign bits are then set, and no certified verdict uses the vertex.
 pub const UNKNOWN: u32 = 1 << 30;
-/// Lattice vertices per tile the planner aims at.
-pub const TILE_VERTICES: usize = 1 << 17;
+/// Lattice vertices per tile the planner aims at in R^2 and R^3.
+pub const TILE_VERTICES: usize = 1 << 15;
+/// Lattice vertices per tile above R^3, where the layer of corners a tile shares with its
+/// neighbours costs more.
+pub const TILE_VERTICES_HIGH: usize = 1 << 14;
+/// Fewest cubes per axis of a tile.
+const MIN_SIDE: u128 = 4;
 /// Most tiles a scan may take.
 const MAX_TILES: u128 = 1 << 24;
 
@@ -112,9 +120,9 @@ pub struct TileFound {
 
 impl TilePlan {
     /// The tiles of the exhaustive scan of `bbox` on `tri`, of about [`TILE_VERTICES`]
-    /// vertices each, leaving out those whose cubes lie wholly outside the box grown by an
-    /// edge.
-    pub fn new(tri: &Triangulation, k: usize, bbox: &[[f64; 2]]) -> Result<Self> {
+    /// vertices each ([`TILE_VERTICES_HIGH`] above R^3), leaving out those whose bases lie
+    /// wholly outside the box grown by an edge ([`Separation`]).
+    pub fn new(tri: &Triangulation, k: usize, bbox: &[[f64; 2]], max_memory: u64) -> Result<Self> {
         let d = tri.dim();
         let edge = tri.edge();
         let base_box: Vec<[f64; 2]> = bbox.iter().map(|[l, h]| [l - edge, h + edge]).collect();
@@ -139,60 +147,80 @@ impl TilePlan {
             .zip(&hi)
             .map(|(l, h)| (h.saturating_sub(*l) as u128).saturating_add(1))
             .collect();
-        let side = ((TILE_VERTICES as f64).powf(1.0 / d as f64).floor() as u128).max(2) - 1;
-        let per: Vec<u128> = span.iter().map(|&s| s.clamp(1, side)).collect();
-        let count: u128 = span
-            .iter()
-            .zip(&per)
-            .try_fold(1u128, |a, (s, p)| a.checked_mul(s.div_ceil(*p)))
-            .unwrap_or(u128::MAX);
+        let target = if d <= 3 {
+            TILE_VERTICES
+        } else {
+            TILE_VERTICES_HIGH
+        };
+        let side = ((target as f64).powf(1.0 / d as f64).floor() as u128)
+            .saturating_sub(1)
+            .max(MIN_SIDE);
         let reach = lo
             .iter()
             .zip(&hi)
             .all(|(l, h)| l.unsigned_abs() < 1 << 30 && h.unsigned_abs() < 1 << 30);
-        if count > MAX_TILES || !reach {
+        // Rows along axis 0 (ids in the mixed radix n[1..]), as the CPU's grid walks them.
+        let n: Vec<usize> = span
+            .iter()
+            .map(|&s| (s + 1).min(1 << 40) as usize)
+            .collect();
+        let rows = n[1..]
+            .iter()
+            .try_fold(1u128, |a, &b| a.checked_mul(b as u128));
+        let too_many = |what: String| {
+            Error::Trace(format!(
+                "the exhaustive scan of this box needs {what}, over what a scan takes: use a                  smaller box or a larger edge"
+            ))
+        };
+        if !reach || !matches!(rows, Some(r) if r * 24 <= max_memory as u128) {
             let vertices: f64 = span.iter().map(|&s| s as f64).product();
-            return Err(Error::Trace(format!(
-                "the exhaustive scan of this box needs about {vertices:.3e} lattice vertices, \
-                 over what a scan takes: use a smaller box or a larger edge"
-            )));
+            return Err(too_many(format!("about {vertices:.3e} lattice vertices")));
         }
-        let (a, b) = tri.affine_map();
-        let mut tiles = Vec::new();
-        let mut digit = vec![0u128; d];
-        'tiles: loop {
-            let origin: Vec<i64> = (0..d).map(|j| lo[j] + (digit[j] * per[j]) as i64).collect();
-            let counts: Vec<u32> = (0..d)
-                .map(|j| (per[j].min(span[j] - digit[j] * per[j]) + 1) as u32)
+        // The bases' rows, gathered into blocks of `side` cubes along axes 1..d-1; per block
+        // the range of u_0 its rows cover, cut into tiles of `side` cubes.
+        let mut blocks: BTreeMap<Vec<u64>, (i64, i64)> = BTreeMap::new();
+        for (id, start, len) in row_spans(tri, &near, &lo, &hi, &n) {
+            let mut rest = id;
+            let key: Vec<u64> = (1..d)
+                .map(|j| {
+                    let digit = rest % n[j];
+                    rest /= n[j];
+                    (digit as u128 / side) as u64
+                })
                 .collect();
-            // The tile's vertices in R^d lie in the box of its corners' extremes.
-            let meets = (0..d).all(|r| {
-                let (mut min, mut max) = (b[r], b[r]);
-                for c in 0..d {
-                    let ends = [
-                        a[r * d + c] * origin[c] as f64,
-                        a[r * d + c] * (origin[c] + counts[c] as i64 - 1) as f64,
-                    ];
-                    min += ends[0].min(ends[1]);
-                    max += ends[0].max(ends[1]);
+            let end = start + len as i64 - 1;
+            let e = blocks.entry(key).or_insert((start, end));
+            *e = (e.0.min(start), e.1.max(end));
+        }
+        let separation = Separation::new(tri, &near);
+        let mut tiles = Vec::new();
+        for (key, (first, last)) in blocks {
+            let mut origin = vec![0i64; d];
+            let mut counts = vec![0u32; d];
+            for j in 1..d {
+                origin[j] = lo[j] + (key[j - 1] as u128 * side) as i64;
+                // The rows' digits reach n[j] - 1.
+                let end = lo[j] + n[j] as i64 - 1;
+                counts[j] = ((end - origin[j] + 1).min(side as i64) + 1) as u32;
+            }
+            let mut at = first;
+            while at <= last {
+                origin[0] = at;
+                counts[0] = ((last - at + 1).min(side as i64) + 1) as u32;
+                at += side as i64;
+                // The tile's bases, a parallelepiped in R^d, against the box of scanned bases.
+                let top: Vec<i64> = (0..d).map(|j| origin[j] + counts[j] as i64 - 2).collect();
+                if separation.apart(&origin, &top) {
+                    continue;
                 }
-                let slack = 1e-9 * (min.abs().max(max.abs()) + edge);
-                max + slack >= near[r][0] && min - slack <= near[r][1]
-            });
-            if meets {
+                if tiles.len() as u128 >= MAX_TILES {
+                    return Err(too_many(format!("more than {MAX_TILES} tiles")));
+                }
                 tiles.push(Tile {
                     origin: origin.iter().map(|&o| o as i32).collect(),
-                    counts,
+                    counts: counts.clone(),
                 });
             }
-            for j in 0..d {
-                digit[j] += 1;
-                if digit[j] * per[j] < span[j] {
-                    continue 'tiles;
-                }
-                digit[j] = 0;
-            }
-            break;
         }
         Ok(TilePlan {
             d,
@@ -216,6 +244,134 @@ pub enum Place {
     Far,
     /// Neither: no candidate reads it.
     Out,
+}
+
+/// The test of whether a block of lattice vertices lies wholly outside a box in R^d: both
+/// are zonotopes (the block's generators the columns of A, the box's the axes), so they are
+/// disjoint exactly when some facet normal of their Minkowski difference separates them.
+/// Those normals are orthogonal to d - 1 of the 2d generators.
+struct Separation {
+    d: usize,
+    a: Vec<f64>,
+    b: Vec<f64>,
+    near: Vec<[f64; 2]>,
+    normals: Vec<[f64; MAX_DIM]>,
+    /// Per normal, n . A_c for each column c.
+    along: Vec<[f64; MAX_DIM]>,
+}
+
+impl Separation {
+    fn new(tri: &Triangulation, near: &[[f64; 2]]) -> Self {
+        let d = tri.dim();
+        let (a, b) = tri.affine_map();
+        let mut gens: Vec<Vec<f64>> = (0..d)
+            .map(|c| (0..d).map(|r| a[r * d + c]).collect())
+            .collect();
+        gens.extend((0..d).map(|r| (0..d).map(|t| f64::from(u8::from(t == r))).collect()));
+        let mut normals = Vec::new();
+        for mask in 0u32..1 << (2 * d) {
+            if mask.count_ones() as usize + 1 != d {
+                continue;
+            }
+            let span: Vec<&Vec<f64>> = (0..2 * d)
+                .filter(|&g| mask >> g & 1 == 1)
+                .map(|g| &gens[g])
+                .collect();
+            if let Some(n) = orthogonal(&span, d) {
+                normals.push(n);
+            }
+        }
+        let along = normals
+            .iter()
+            .map(|n| {
+                let mut out = [0.0; MAX_DIM];
+                for c in 0..d {
+                    out[c] = (0..d).map(|r| n[r] * a[r * d + c]).sum();
+                }
+                out
+            })
+            .collect();
+        Separation {
+            d,
+            a,
+            b,
+            near: near.to_vec(),
+            normals,
+            along,
+        }
+    }
+
+    /// Whether the lattice block `lo..=hi` maps wholly outside the box, with a margin for
+    /// rounding (never true of a block that meets it).
+    fn apart(&self, lo: &[i64], hi: &[i64]) -> bool {
+        let d = self.d;
+        let mut center = [0.0; MAX_DIM];
+        let mut half = [0.0; MAX_DIM];
+        for c in 0..d {
+            half[c] = 0.5 * (hi[c] - lo[c]) as f64;
+        }
+        for r in 0..d {
+            center[r] = self.b[r]
+                + (0..d)
+                    .map(|c| self.a[r * d + c] * 0.5 * (lo[c] + hi[c]) as f64)
+                    .sum::<f64>()
+                - 0.5 * (self.near[r][0] + self.near[r][1]);
+        }
+        self.normals.iter().zip(&self.along).any(|(n, along)| {
+            let gap: f64 = (0..d).map(|r| n[r] * center[r]).sum();
+            let reach: f64 = (0..d)
+                .map(|c| {
+                    along[c].abs() * half[c]
+                        + n[c].abs() * 0.5 * (self.near[c][1] - self.near[c][0])
+                })
+                .sum();
+            gap.abs() > reach * (1.0 + 1e-9) + 1e-9
+        })
+    }
+}
+
+/// A unit vector orthogonal to the d - 1 vectors `span` of R^d, or None when they are
+/// dependent.
+fn orthogonal(span: &[&Vec<f64>], d: usize) -> Option<[f64; MAX_DIM]> {
+    let norm = |w: &[f64]| w.iter().map(|x| x * x).sum::<f64>().sqrt();
+    let project = |w: &mut Vec<f64>, basis: &[Vec<f64>]| {
+        for _ in 0..2 {
+            for q in basis {
+                let dot: f64 = w.iter().zip(q).map(|(x, y)| x * y).sum();
+                w.iter_mut().zip(q).for_each(|(x, y)| *x -= dot * y);
+            }
+        }
+    };
+    let mut basis: Vec<Vec<f64>> = Vec::with_capacity(d);
+    for v in span {
+        let mut w = v.to_vec();
+        let before = norm(&w);
+        project(&mut w, &basis);
+        let after = norm(&w);
+        if after <= 1e-9 * before.max(f64::MIN_POSITIVE) {
+            return None;
+        }
+        basis.push(w.iter().map(|x| x / after).collect());
+    }
+    let (size, w) = (0..d)
+        .map(|t| {
+            let mut w = vec![0.0; d];
+            w[t] = 1.0;
+            project(&mut w, &basis);
+            (norm(&w), w)
+        })
+        .fold(
+            (0.0, Vec::new()),
+            |best, c| if c.0 > best.0 { c } else { best },
+        );
+    if size <= 1e-9 {
+        return None;
+    }
+    let mut n = [0.0; MAX_DIM];
+    for (o, x) in n.iter_mut().zip(&w) {
+        *o = x / size;
+    }
+    Some(n)
 }
 
 /// The CPU twin of the device's tile stages (`shaders/tile_values.wgsl`,
@@ -357,7 +513,7 @@ pub(crate) fn scan<const W: usize>(
     bbox: &[[f64; 2]],
     device: &dyn DeviceValues,
 ) -> Result<Scanned<W>> {
-    let plan = TilePlan::new(ctx.tri, ctx.k, bbox)?;
+    let plan = TilePlan::new(ctx.tri, ctx.k, bbox, ctx.max_memory)?;
     let mut stats = TraceStats::default();
     let mut found: Vec<Key<W>> = Vec::new();
     let mut evaluated = Evaluated::default();
