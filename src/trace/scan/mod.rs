@@ -20,10 +20,7 @@ pub mod device_values;
 #[cfg(not(feature = "internals"))]
 pub(crate) mod device_values;
 mod grid;
-#[cfg(feature = "internals")]
 pub mod tiles;
-#[cfg(not(feature = "internals"))]
-pub(crate) mod tiles;
 
 pub use candidates::Candidates;
 pub use grid::ScanGrid;

@@ -121,7 +121,7 @@ pub struct TileFound {
 impl TilePlan {
     /// The tiles of the exhaustive scan of `bbox` on `tri`, of about [`TILE_VERTICES`]
     /// vertices each ([`TILE_VERTICES_HIGH`] above R^3), leaving out those whose bases lie
-    /// wholly outside the box grown by an edge ([`Separation`]).
+    /// wholly outside the box grown by an edge (a zonotope separation test).
     pub fn new(tri: &Triangulation, k: usize, bbox: &[[f64; 2]], max_memory: u64) -> Result<Self> {
         let d = tri.dim();
         let edge = tri.edge();
