@@ -14,7 +14,7 @@
 // values: per vertex OUTS pairs (value, bound). codes: 0 outside the corners' box, else bit 2c unless component c
 // is certainly > 0, bit 2c + 1 unless it is certainly < 0, UNKNOWN (and both bits) where a
 // value is not known, BASE where the cube based there is scanned.
-// counters[2]: vertices with an unknown value.
+// counters[2]: vertices with an unknown value; counters[3]: vertices where f was evaluated.
 
 @group(0) @binding(0) var<storage, read> map: array<real>;
 @group(0) @binding(1) var<storage, read> tile: array<u32>;
@@ -23,12 +23,28 @@
 @group(0) @binding(4) var<storage, read_write> counters: array<atomic<u32>>;
 @group(0) @binding(5) var<uniform> params: Params;
 
+// Vertices of this workgroup where f was evaluated.
+var<workgroup> evaluated: atomic<u32>;
+
 @compute @workgroup_size(WORKGROUP)
-fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
+fn main(@builtin(global_invocation_id) gid: vec3<u32>,
+        @builtin(local_invocation_index) lid: u32) {
     let i = gid.x + gid.y * params.row_stride;
-    if (i >= params.count) {
-        return;
+    if (i < params.count && vertex(i)) {
+        atomicAdd(&evaluated, 1u);
     }
+    workgroupBarrier();
+    if (lid == 0u) {
+        let n = atomicLoad(&evaluated);
+        if (n > 0u) {
+            atomicAdd(&counters[3], n);
+        }
+    }
+}
+
+// Vertex i: its code, and its values unless it lies outside the far box; whether f was
+// evaluated there.
+fn vertex(i: u32) -> bool {
     // The lattice vertex; a vertex on the top layer of an axis only closes cubes.
     var u: array<real, DIM>;
     var rest = i;
@@ -64,7 +80,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     // No scanned cube has a corner outside the far box: f is not needed there.
     if (far) {
         codes[i] = 0u;
-        return;
+        return false;
     }
     var y = isomesh_fc(x);
     var code = select(0u, BASE, base);
@@ -84,4 +100,5 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         atomicAdd(&counters[2], 1u);
     }
     codes[i] = code;
+    return true;
 }

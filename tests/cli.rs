@@ -613,14 +613,14 @@ fn bench_compares_the_oracles_and_traces_and_plots() {
     for row in scans {
         assert!(row["simplices"].as_u64().unwrap() > 0, "{row}");
         if gpu {
-            // With device values the device evaluated the grid, the CPU a small part of it.
+            // With device values the device evaluated f near the box (in tiles, whose
+            // borders it evaluates once per tile), the CPU at a small part of it.
             assert_eq!(row["same_sample"], true, "{row}");
             let (dev, cpu) = (
                 row["device_vertex_evaluations"].as_u64().unwrap(),
                 row["cpu_vertex_evaluations"].as_u64().unwrap(),
             );
             assert!(0 < cpu && cpu * 4 < dev, "{row}");
-            assert!(dev <= row["vertices"].as_u64().unwrap(), "{row}");
             let decided =
                 row["device_decisions"].as_u64().unwrap() + row["cpu_decisions"].as_u64().unwrap();
             assert!(decided >= row["simplices"].as_u64().unwrap(), "{row}");

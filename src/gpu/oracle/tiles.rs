@@ -31,7 +31,7 @@ pub const TILE_CERTIFY_WGSL: &str = include_str!("../../../shaders/tile_certify.
 
 /// Workgroups per dispatch row (the limit per dimension).
 const MAX_GROUPS: u32 = 65_535;
-/// Bytes of the counters: records, candidates, unknown vertices, and a pad word.
+/// Bytes of the counters: records, candidates, unknown vertices, evaluated vertices.
 const COUNTERS: u64 = 16;
 
 /// The tile values shader of `prog` in precision `p`, validated by naga.
@@ -468,6 +468,7 @@ impl GpuOracle<'_> {
                     records: bytemuck::pod_collect_to_vec(&view[at..at + kept]),
                     candidates: counters[1] as u64,
                     unknown: counters[2] as u64,
+                    evaluated: counters[3] as u64,
                 },
                 open,
             }

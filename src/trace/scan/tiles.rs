@@ -116,6 +116,8 @@ pub struct TileFound {
     pub candidates: u64,
     /// Vertices whose value the device did not know.
     pub unknown: u64,
+    /// Vertices where the device evaluated f (those within two edges of the box, padded).
+    pub evaluated: u64,
 }
 
 impl TilePlan {
@@ -172,7 +174,16 @@ impl TilePlan {
                 "the exhaustive scan of this box needs {what}, over what a scan takes: use a                  smaller box or a larger edge"
             ))
         };
-        if !reach || !matches!(rows, Some(r) if r * 24 <= max_memory as u128) {
+        // The rows held take 24 bytes each; there are at most the rows of the bounding box
+        // and about as many as the vertices (the box's volume over |det A|), twice for the
+        // rows a box cuts short.
+        let log_volume: f64 = near.iter().map(|[l, h]| (h - l).log10()).sum();
+        let vertices = crate::linalg::Lu::new(&tri.matrix(), d).map_or(f64::INFINITY, |lu| {
+            10f64.powf(log_volume - lu.abs_det().log10())
+        });
+        let held = rows.map_or(f64::INFINITY, |r| (r as f64).min(2.0 * vertices + 1.0));
+        // NaN (a degenerate box) is refused too.
+        if !reach || rows.is_none() || held * 24.0 > max_memory as f64 || held.is_nan() {
             let vertices: f64 = span.iter().map(|&s| s as f64).product();
             return Err(too_many(format!("about {vertices:.3e} lattice vertices")));
         }
@@ -469,6 +480,7 @@ pub fn twin_tile_with(
         records,
         candidates: m as u64,
         unknown: codes.iter().filter(|&&c| c & UNKNOWN != 0).count() as u64,
+        evaluated: inside.len() as u64,
     })
 }
 
@@ -524,8 +536,8 @@ pub(crate) fn scan<const W: usize>(
             return Ok(false);
         }
         let tile = &plan.tiles[t];
-        stats.vertices += tile.vertices() as u64;
-        stats.device_vertex_evaluations += tile.vertices() as u64;
+        stats.vertices += got.evaluated;
+        stats.device_vertex_evaluations += got.evaluated;
         unknown += got.unknown;
         settle(
             ctx,
