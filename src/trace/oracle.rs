@@ -11,7 +11,7 @@ use crate::cpu::solve::Status;
 use crate::error::Result;
 use crate::expr::ImplicitFunction;
 use crate::trace::scan::candidates::{self, Candidates};
-use crate::trace::scan::tiles::{twin_tile, TileFound, TilePlan};
+use crate::trace::scan::tiles::{twin_scan, TileFound, TilePlan};
 use crate::triangulation::Triangulation;
 
 /// How a batch of decisions ([`Decide::decide`]) was reached.
@@ -100,23 +100,19 @@ pub trait DeviceValues: Sync {
     /// The exhaustive scan resident on the device ([`crate::trace::scan::tiles`]): per tile
     /// of `plan`, in order, the candidates the device could not prove outside, handed to
     /// `each(t, found)` (while the device works on the next tiles) until it returns false.
-    /// By default each tile runs through the twin ([`twin_tile`]), on
+    /// By default each tile runs through the twin ([`twin_tile`], [`twin_scan`]), on
     /// [`eval_certified`](Self::eval_certified) and
     /// [`decide_certified`](Self::decide_certified).
     ///
     /// [`twin_tile`]: crate::trace::scan::tiles::twin_tile
+    /// [`twin_scan`]: crate::trace::scan::tiles::twin_scan
     fn scan_tiles(
         &self,
         tri: &Triangulation,
         plan: &TilePlan,
         each: &mut dyn FnMut(usize, TileFound) -> Result<bool>,
     ) -> Result<()> {
-        for (t, tile) in plan.tiles.iter().enumerate() {
-            if !each(t, twin_tile(self, tri, plan, tile)?)? {
-                break;
-            }
-        }
-        Ok(())
+        twin_scan(self, tri, plan, each)
     }
 }
 

@@ -18,7 +18,7 @@ use crate::error::{Error, Result};
 use crate::expr::program::Program;
 use crate::gpu::wgsl::{certified_prelude, stage_prelude, validate, Precision, WORKGROUP};
 use crate::trace::scan::candidates::{pass_mask, BASE};
-use crate::trace::scan::tiles::{twin_tile, Tile, TileFound, TilePlan, UNKNOWN};
+use crate::trace::scan::tiles::{twin_scan, twin_tile, Tile, TileFound, TilePlan, UNKNOWN};
 use crate::trace::scan::MAX_TILED_DIM;
 use crate::triangulation::Triangulation;
 
@@ -170,12 +170,7 @@ impl GpuOracle<'_> {
             || self.perturb.load(Ordering::Relaxed) != 0
             || !self.takes(plan);
         if twin {
-            for (t, tile) in plan.tiles.iter().enumerate() {
-                if !each(t, twin_tile(self, tri, plan, tile)?)? {
-                    break;
-                }
-            }
-            return Ok(());
+            return twin_scan(self, tri, plan, each);
         }
         let pipes = self.tile_pipelines(plan.d)?;
         self.upload_map(tri, plan)?;

@@ -201,18 +201,7 @@ fn decide_batch<const W: usize>(
                 return Ok(None);
             }
             grid.coords(row[0] as usize, &mut v[..d]);
-            let full = (1u64 << d) - 1;
-            let mut parts = [0u64; MAX_DIM + 1];
-            let mut prev = 0;
-            for (j, &s) in chain.iter().enumerate() {
-                parts[j] = s as u64 & !prev;
-                prev = s as u64;
-            }
-            parts[k] = (full & !prev) | (1 << d);
-            let simplex = Simplex::from_masks(&v[..d], &parts[..=k])?;
-            let mut key = [0u64; W];
-            ctx.codec.encode(&simplex, &mut key)?;
-            Ok(Some(key))
+            chain_key(ctx, &v[..d], chain).map(Some)
         })
         .collect();
     for h in hits {
@@ -221,6 +210,28 @@ fn decide_batch<const W: usize>(
         }
     }
     Ok(())
+}
+
+/// The key of the k-simplex of the lattice cube based at `v0` whose vertices are v0 + e_S for
+/// the empty set and the corner sets `chain` (S_1 < .. < S_k; bit j: axis j).
+pub(super) fn chain_key<const W: usize>(
+    ctx: &TraceContext,
+    v0: &[i32],
+    chain: &[u32],
+) -> Result<Key<W>> {
+    let (d, k) = (v0.len(), chain.len());
+    let full = (1u64 << d) - 1;
+    let mut parts = [0u64; MAX_DIM + 1];
+    let mut prev = 0;
+    for (j, &s) in chain.iter().enumerate() {
+        parts[j] = s as u64 & !prev;
+        prev = s as u64;
+    }
+    parts[k] = (full & !prev) | (1 << d);
+    let simplex = Simplex::from_masks(v0, &parts[..=k])?;
+    let mut key = [0u64; W];
+    ctx.codec.encode(&simplex, &mut key)?;
+    Ok(key)
 }
 
 /// An error when the cancel flag (Ctrl-C) is set: for steps that have nothing to keep.

@@ -26,7 +26,7 @@ use super::grid::row_spans;
 use crate::trace::region::{in_box, lattice_bounds};
 use crate::trace::table::{Key, Table};
 use crate::trace::{DeviceValues, StopReason, TraceContext, TraceStats};
-use crate::triangulation::{Simplex, Triangulation, MAX_DIM};
+use crate::triangulation::{Triangulation, MAX_DIM};
 
 /// The bit of a sign code whose vertex's value the device does not know (bounds too wide
 /// or not finite): both sign bits are then set, and no certified verdict uses the vertex.
@@ -511,6 +511,22 @@ pub fn twin_tile<D: DeviceValues + ?Sized>(
     )
 }
 
+/// The tiles of `plan` through the twin on `device`, in order, handed to `each` until it
+/// returns false: [`DeviceValues::scan_tiles`] by default.
+pub fn twin_scan<D: DeviceValues + ?Sized>(
+    device: &D,
+    tri: &Triangulation,
+    plan: &TilePlan,
+    each: &mut dyn FnMut(usize, TileFound) -> Result<bool>,
+) -> Result<()> {
+    for (t, tile) in plan.tiles.iter().enumerate() {
+        if !each(t, twin_tile(device, tri, plan, tile)?)? {
+            break;
+        }
+    }
+    Ok(())
+}
+
 /// The vertices the CPU evaluated f at, and their values, gathered over the tiles.
 #[derive(Default)]
 struct Evaluated {
@@ -683,19 +699,8 @@ fn settle<const W: usize>(
                 return Ok(None);
             }
             let chain = &records[kept[j]][1..=k];
-            let full = (1u64 << d) - 1;
-            let mut parts = [0u64; MAX_DIM + 1];
-            let mut prev = 0;
-            for (c, &s) in chain.iter().enumerate() {
-                parts[c] = s as u64 & !prev;
-                prev = s as u64;
-            }
-            parts[k] = (full & !prev) | (1 << d);
             let v0 = &lattice[row[0] as usize * d..][..d];
-            let simplex = Simplex::from_masks(v0, &parts[..=k])?;
-            let mut key = [0u64; W];
-            ctx.codec.encode(&simplex, &mut key)?;
-            Ok(Some(key))
+            super::chain_key(ctx, v0, chain).map(Some)
         })
         .collect();
     for h in hits {
