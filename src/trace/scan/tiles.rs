@@ -464,11 +464,11 @@ pub fn twin_tile_with(
     let mut records = Vec::new();
     for i in 0..m {
         let row = &cands.rows[i * (k + 1)..(i + 1) * (k + 1)];
-        if verdict[i] == OUTSIDE && row.iter().all(|&v| codes[v as usize] & UNKNOWN == 0) {
-            continue;
-        }
-        let v = if verdict[i] == OUTSIDE {
+        // As the shader: a vertex of unknown value makes the candidate uncertain.
+        let v = if row.iter().any(|&v| codes[v as usize] & UNKNOWN != 0) {
             crate::cpu::certificate::UNCERTAIN
+        } else if verdict[i] == OUTSIDE {
+            continue;
         } else {
             verdict[i]
         };
@@ -634,21 +634,25 @@ fn settle<const W: usize>(
         .values()
         .eval_vertices(ctx.tri, &lattice, &mut values)?;
     stats.cpu_vertex_evaluations += uniq.len() as u64;
-    let slot = |v: u32| uniq.binary_search(&v).expect("a record's vertex") as u32;
-    let code = |s: u32| sign_code(&values[s as usize * k..(s as usize + 1) * k]);
+    // Each record's vertices as rows of `values`, and the CPU's sign code of each vertex.
+    let rows: Vec<u32> = rows
+        .par_iter()
+        .map(|v| uniq.binary_search(v).expect("a record's vertex") as u32)
+        .collect();
+    let codes: Vec<u32> = values.par_chunks(k).map(sign_code).collect();
     // The CPU's own candidates among the records.
     let mask = pass_mask(k);
     let mut kept = Vec::with_capacity(records.len());
     let mut sub = Vec::with_capacity(rows.len());
     for (i, r) in records.iter().enumerate() {
-        let row: Vec<u32> = rows[i * n..(i + 1) * n].iter().map(|&v| slot(v)).collect();
-        let passes = row.iter().fold(0, |c, &s| c | code(s)) & mask == mask;
+        let row = &rows[i * n..(i + 1) * n];
+        let passes = row.iter().fold(0, |c, &s| c | codes[s as usize]) & mask == mask;
         let mut x = [0.0; MAX_DIM];
         ctx.tri
             .vertex_coords(&lattice[row[0] as usize * d..][..d], &mut x[..d]);
         if passes && in_box(&plan.base_box, &x[..d]) {
             kept.push(i);
-            sub.extend_from_slice(&row);
+            sub.extend_from_slice(row);
         } else if !passes && r[k + 1] == CROSSED {
             return Err(contradiction("not a candidate of the CPU"));
         }
