@@ -515,6 +515,104 @@ fn an_interrupted_exhaustive_scan_keeps_what_it_found() {
     assert!(part.sorted_keys().iter().all(|k| all.contains(k)));
 }
 
+/// The CPU oracle raising `cancel` as it evaluates f for the `at`-th time (inside a level,
+/// while its new vertices are evaluated), and counting the batches it decides afterwards.
+struct StopWhileEvaluating<'a> {
+    inner: CpuOracle<'a>,
+    cancel: std::sync::Arc<std::sync::atomic::AtomicBool>,
+    at: usize,
+    evaluations: std::sync::atomic::AtomicUsize,
+    decided_after: std::sync::atomic::AtomicUsize,
+}
+
+impl Oracle for StopWhileEvaluating<'_> {
+    fn name(&self) -> String {
+        self.inner.name()
+    }
+    fn values(&self) -> &dyn Evaluate {
+        self
+    }
+    fn decisions(&self) -> &dyn Decide {
+        self
+    }
+}
+
+impl Evaluate for StopWhileEvaluating<'_> {
+    fn eval_vertices(
+        &self,
+        tri: &Triangulation,
+        lattice: &[i32],
+        values: &mut [f64],
+    ) -> Result<()> {
+        use std::sync::atomic::Ordering::Relaxed;
+        if self.evaluations.fetch_add(1, Relaxed) + 1 == self.at {
+            self.cancel.store(true, Relaxed);
+        }
+        self.inner.eval_vertices(tri, lattice, values)
+    }
+}
+
+impl Decide for StopWhileEvaluating<'_> {
+    fn decide(
+        &self,
+        values: &[f64],
+        simplices: &[u32],
+        status: &mut [Status],
+        lambda: &mut [f64],
+    ) -> Result<isomesh::trace::Decisions> {
+        use std::sync::atomic::Ordering::Relaxed;
+        if self.cancel.load(Relaxed) {
+            self.decided_after.fetch_add(1, Relaxed);
+        }
+        self.inner.decide(values, simplices, status, lambda)
+    }
+}
+
+#[test]
+fn a_stop_inside_a_level_drops_the_level_undecided() {
+    // A signal that comes while a level evaluates f at its new vertices: nothing more of the
+    // level is decided (in high dimensions that is seconds of work), and the levels before
+    // it are kept.
+    for (name, params, edge) in [
+        ("sphere", vec![], 0.1),
+        ("sphere", vec![("d", 5.0), ("m", 4.0)], 0.4),
+    ] {
+        let p = problem(name, &params, edge);
+        let tri = p.triangulation.build(p.dim()).unwrap();
+        let full = run(&p, None, false);
+        let cancel = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+        let oracle = StopWhileEvaluating {
+            inner: CpuOracle::new(&p.system),
+            cancel: cancel.clone(),
+            at: 4,
+            evaluations: Default::default(),
+            decided_after: Default::default(),
+        };
+        let opts = TraceOptions {
+            seeds: p.seeds.clone(),
+            cancel: Some(cancel),
+            ..TraceOptions::default()
+        };
+        let part = trace(&p.system, &tri, &oracle, &opts).unwrap();
+        assert_eq!(part.stats.stopped, Some(StopReason::Interrupted), "{name}");
+        assert_eq!(
+            oracle.decided_after.into_inner(),
+            0,
+            "{name}: decided after the stop"
+        );
+        assert!(
+            !part.is_empty() && part.len() < full.len(),
+            "{name}: {} of {}",
+            part.len(),
+            full.len()
+        );
+        assert!(
+            (0..part.len()).all(|i| part.key(i) == full.key(i)),
+            "{name}: not a prefix"
+        );
+    }
+}
+
 /// Two samples are the same: keys in the same order, the same point bits, the same rim and
 /// the same counters.
 fn assert_same_sample(a: &Sample, b: &Sample, what: &str) {

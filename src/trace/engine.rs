@@ -89,6 +89,15 @@ impl<'a, const W: usize> Engine<'a, W> {
         false
     }
 
+    /// Whether a stop was asked for (Ctrl-C), which is then the trace's stop reason.
+    pub(super) fn signalled(&mut self) -> bool {
+        let stop = self.ctx.interrupted();
+        if stop {
+            self.stats.stopped = Some(StopReason::Interrupted);
+        }
+        stop
+    }
+
     /// [`Engine::must_stop_growing`] for a step that adds no key.
     pub(super) fn must_stop(&mut self, next_bytes: usize) -> bool {
         self.must_stop_growing(next_bytes, 0)

@@ -26,6 +26,8 @@ const SIGMA_CHUNK: usize = 24;
 const SLICE_CANDIDATES: usize = 1 << 20;
 /// Fewest found simplices per parallel work item (points).
 const POINT_CHUNK: usize = 128;
+/// Most new vertices a level evaluates and caches at once (a stop is heeded between).
+const VERTEX_PIECE: usize = 1 << 18;
 
 /// A k-simplex to test: the facet of cofacet tau number `via` of frontier simplex `from`
 /// that lacks tau's vertex `drop`. Tau's new vertex sits at `apex_at` and has cache index
@@ -181,8 +183,12 @@ impl<'e, 'a, const W: usize> Namer<'e, 'a, W> {
         let ok = self.load(i);
         let mut via = 0u32;
         let mut err = Ok(());
+        let mut stop = false;
         self.sigma.for_each_cofacet_split(|tau, p, split| {
-            if err.is_ok() {
+            // In high dimensions one simplex has millions of cofacets: a stop asked for
+            // meanwhile leaves them unnamed (the caller drops the slice).
+            stop = stop || (via % 4096 == 4095 && self.work.engine.ctx.interrupted());
+            if err.is_ok() && !stop {
                 err = self.work.cofacet(tau, p, i as u32, via, Err(split), ok);
             }
             via += 1;
@@ -194,7 +200,10 @@ impl<'e, 'a, const W: usize> Namer<'e, 'a, W> {
     /// the cache indices of their new vertices.
     fn some_cofacets(&mut self, i: usize, some: &[(Deferred<W>, u32)]) -> Result<()> {
         let ok = self.load(i);
-        for (t, apex) in some {
+        for (n, (t, apex)) in some.iter().enumerate() {
+            if n % 4096 == 4095 && self.work.engine.ctx.interrupted() {
+                break;
+            }
             let p = self
                 .sigma
                 .cofacet_into(t.part as usize, t.subset, &mut self.tau);
@@ -312,6 +321,9 @@ impl<const W: usize> Engine<'_, W> {
         let mut second = Vec::new();
         let mut t = 0;
         while t < retry.len() {
+            if self.signalled() {
+                return Ok(None);
+            }
             let from = retry[t].0;
             let sigma = self
                 .ctx
@@ -409,6 +421,10 @@ impl<const W: usize> Engine<'_, W> {
                 return Ok(None);
             }
             self.name_deferred(frontier, &mut named)?;
+            // Naming stops short when a signal comes: the slice is incomplete.
+            if self.signalled() {
+                return Ok(None);
+            }
             self.stats.pivot_fallbacks += named.fallbacks;
             self.stats.non_finite += named.non_finite;
             let mut cands = named.cands;
@@ -454,9 +470,15 @@ impl<const W: usize> Engine<'_, W> {
             // Commonly under two new candidates and one deferred cofacet per simplex.
             let mut namer = Namer::new(self, frontier, 2 * r.len(), r.len());
             for i in r {
+                // A stop asked for meanwhile: the caller drops this slice unfinished.
+                if self.ctx.interrupted() {
+                    break;
+                }
                 namer.all_cofacets(slice.start + i)?;
             }
-            namer.work.out.cands.sort_unstable();
+            if !self.ctx.interrupted() {
+                namer.work.out.cands.sort_unstable();
+            }
             Ok(namer.work.out)
         });
         let mut named = Named::with_capacity(0, 0);
@@ -470,9 +492,20 @@ impl<const W: usize> Engine<'_, W> {
         if named.deferred.is_empty() {
             return Ok(());
         }
+        if self.ctx.interrupted() {
+            return Ok(());
+        }
         let deferred = std::mem::take(&mut named.deferred);
         let mut keys: Vec<Key<W>> = deferred.iter().map(|t| t.vertex).collect();
-        self.add_vertices(&mut keys)?;
+        sort(&mut keys);
+        keys.dedup();
+        // In pieces, between which a stop is heeded (the caller then drops the slice).
+        for piece in keys.chunks(VERTEX_PIECE) {
+            if self.ctx.interrupted() {
+                return Ok(());
+            }
+            self.add_vertices(&mut piece.to_vec())?;
+        }
         let with_apex: Vec<(Deferred<W>, u32)> = deferred
             .par_iter()
             .with_min_len(POINT_CHUNK)
@@ -485,11 +518,16 @@ impl<const W: usize> Engine<'_, W> {
             let end = starts.get(r.end).copied().unwrap_or(with_apex.len());
             let mut namer = Namer::new(self, frontier, end - starts[r.start], 0);
             for s in r {
+                if self.ctx.interrupted() {
+                    break;
+                }
                 let end = starts.get(s + 1).copied().unwrap_or(with_apex.len());
                 let group = &with_apex[starts[s]..end];
                 namer.some_cofacets(group[0].0.from as usize, group)?;
             }
-            namer.work.out.cands.sort_unstable();
+            if !self.ctx.interrupted() {
+                namer.work.out.cands.sort_unstable();
+            }
             Ok(namer.work.out)
         });
         named.extend(parts)

@@ -95,7 +95,8 @@ impl Sample {
             decider: Decider::new(k),
             values: vec![0.0; (k + 1) * k],
             lambda: vec![0.0; k + 1],
-            vkey: vec![0; self.codec.words()],
+            // The vertex set's width: the codec's words, then zeros.
+            vkey: vec![0; self.vertices.words()],
             simplex: self.codec.scratch(),
         }
     }
@@ -336,26 +337,16 @@ pub struct CrossingChecks {
     pub singular: Vec<Vec<f64>>,
 }
 
-/// The sample of a finished trace or scan: its keys, vertices (re-keyed at the codec's width)
-/// and values.
+/// The sample of a finished trace or scan: its keys, vertices and values, moved from the
+/// engine.
 pub(super) fn sample_from<const W: usize>(
     codec: KeyCodec,
     tri: &Triangulation,
     engine: Engine<W>,
     stats: TraceStats,
 ) -> Result<Sample> {
-    let words = codec.words();
-    let verts = engine.verts.into_words();
-    let mut vertices = KeySet::new(words);
-    if words == W {
-        vertices.insert_new_batch(&verts)?;
-    } else {
-        let narrow: Vec<u64> = verts
-            .chunks_exact(W)
-            .flat_map(|v| v[..words].iter().copied())
-            .collect();
-        vertices.insert_new_batch(&narrow)?;
-    }
+    // The trace's vertex set as it is (no key hashed again), its keys W words wide.
+    let vertices = engine.verts.into_dynamic();
     let mut keys = engine.s.into_words();
     keys.shrink_to_fit();
     Ok(Sample {

@@ -88,6 +88,18 @@ impl<const W: usize> KeySet<Words<W>> {
     pub fn key(&self, i: usize) -> &[u64; W] {
         self.get(i).try_into().expect("W words")
     }
+
+    /// The same set with its width known at run time: both widths hash a key alike, so
+    /// the tables move as they are, with no key hashed again.
+    pub fn into_dynamic(self) -> KeySet<usize> {
+        KeySet {
+            width: W,
+            max_keys: self.max_keys,
+            arena: self.arena,
+            tables: self.tables,
+            hasher: self.hasher,
+        }
+    }
 }
 
 impl<N: Width> KeySet<N> {
@@ -309,6 +321,22 @@ mod tests {
         assert_eq!(set.len(), 3);
         assert_eq!(set.find(&[9, 9]), None);
         assert_eq!(set.find(&[2, 7]), Some(2));
+    }
+
+    #[test]
+    fn a_fixed_width_set_keeps_its_keys_when_its_width_moves_to_run_time() {
+        let mut fixed = KeySet::<Words<3>>::fixed();
+        let keys: Vec<u64> = (0..3000u64).flat_map(|i| [i * 7919, i, !i]).collect();
+        fixed.insert_new_batch(&keys).unwrap();
+        let set = fixed.into_dynamic();
+        assert_eq!(set.words(), 3);
+        for (i, key) in keys.chunks_exact(3).enumerate() {
+            assert_eq!(set.find(key), Some(i));
+        }
+        assert_eq!(set.find(&[1, 2, 3]), None);
+        let mut set = set;
+        assert_eq!(set.insert(&[1, 2, 3]).unwrap(), (3000, true));
+        assert_eq!(set.insert(&keys[..3]).unwrap(), (0, false));
     }
 
     #[test]
