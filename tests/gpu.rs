@@ -394,6 +394,7 @@ fn gpu_traces_take_the_cpu_verdicts_lambda_and_rim() {
                     precision,
                     level_slice: slice,
                     device_values: false,
+                    ..GpuOptions::default()
                 };
                 let oracle = GpuOracle::with_options(reopen(), &p.system, options).unwrap();
                 oracle.emulate_device(emulate);
@@ -1565,4 +1566,35 @@ fn gpu_scans_with_device_values_are_the_cpu_scans() {
             );
         }
     }
+}
+
+#[test]
+fn a_stop_during_a_shader_compile_ends_the_wait_and_keeps_the_run() {
+    let Some(g) = gpu("a_stop_during_a_shader_compile_ends_the_wait_and_keeps_the_run") else {
+        return;
+    };
+    let p = problem("sphere", &[]);
+    let cancel = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(true));
+    // The driver may take minutes over a large system's shader: a raised stop flag ends
+    // the wait instead of building the oracle.
+    let options = GpuOptions {
+        cancel: Some(cancel.clone()),
+        ..GpuOptions::default()
+    };
+    match GpuOracle::with_options(g, &p.system, options) {
+        Err(isomesh::Error::Interrupted(why)) => assert!(why.contains("solve"), "{why}"),
+        Err(e) => panic!("not an interruption: {e}"),
+        Ok(_) => panic!("the oracle was built under a raised stop flag"),
+    }
+    // Through the library's front door the run is then a sample marked interrupted, with
+    // its report, as a stop on the CPU backend gives.
+    let m = isomesh::Mesher::from_problem(p)
+        .backend(isomesh::Backend::Gpu)
+        .cancel(cancel)
+        .run(isomesh::mesher::Job::Trace)
+        .unwrap();
+    assert_eq!(
+        m.sample().stats.stopped,
+        Some(isomesh::trace::StopReason::Interrupted)
+    );
 }

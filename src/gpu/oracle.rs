@@ -23,7 +23,7 @@
 
 use std::ops::Range;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
-use std::sync::{Mutex, OnceLock};
+use std::sync::{Arc, Mutex, OnceLock};
 
 use super::context::Gpu;
 use super::wgsl::Precision;
@@ -94,6 +94,8 @@ pub struct GpuOracle<'f> {
     k: usize,
     precision: Precision,
     solve: wgpu::ComputePipeline,
+    /// The stop flag that ends a wait for a shader compile ([`GpuOptions::cancel`]).
+    cancel: Option<Arc<AtomicBool>>,
     /// The vertex shader, built on first use (tracing never needs it).
     eval: OnceLock<wgpu::ComputePipeline>,
     /// The scan shader, built on first use.
@@ -137,7 +139,7 @@ pub struct GpuOracle<'f> {
 }
 
 /// How a [`GpuOracle`] works, fixed when it is made. The mesh does not depend on any of it.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[derive(Clone, Debug, Default)]
 pub struct GpuOptions {
     /// Shader precision; `None` picks f64 where the adapter has it, else f32.
     pub precision: Option<Precision>,
@@ -152,6 +154,10 @@ pub struct GpuOptions {
     /// candidates and certified verdicts, and the CPU evaluates f only at the vertices of
     /// the simplices the device found crossed or could not decide. Off by default.
     pub device_values: bool,
+    /// A stop flag (Ctrl-C): raised while the driver compiles a shader (minutes for a large
+    /// system on some drivers), it ends the wait with [`Error::Interrupted`] at once, the
+    /// compile left to finish on its own thread.
+    pub cancel: Option<Arc<AtomicBool>>,
 }
 
 impl<'f> GpuOracle<'f> {
@@ -189,7 +195,13 @@ impl<'f> GpuOracle<'f> {
             None => Precision::F32,
         };
         let k = f.codim();
-        let solve = pipeline(&gpu, &solve_shader(k, precision)?, "solve")?;
+        let cancel = options.cancel;
+        let solve = pipeline(
+            &gpu,
+            &solve_shader(k, precision)?,
+            "solve",
+            cancel.as_deref(),
+        )?;
         Ok(GpuOracle {
             gpu,
             f,
@@ -220,10 +232,16 @@ impl<'f> GpuOracle<'f> {
             readback_bytes: AtomicU64::new(0),
             phased: AtomicBool::new(false),
             device_values: options.device_values,
+            cancel,
             perturb: AtomicU64::new(0),
             emulate: AtomicU64::new(0),
             buffers: Mutex::new(Default::default()),
         })
+    }
+
+    /// The stop flag of [`GpuOptions::cancel`].
+    pub(super) fn cancel(&self) -> Option<&AtomicBool> {
+        self.cancel.as_deref()
     }
 
     /// The precision of the shaders.

@@ -475,7 +475,12 @@ impl Mesher {
         };
         let cpu = CpuOracle::new(f);
         #[cfg(feature = "gpu")]
-        let gpu = self.gpu_oracle(&mut warnings)?;
+        let gpu = match self.gpu_oracle(&mut warnings) {
+            // Stopped while a shader compiled: the trace below stops at once on the raised
+            // flag, so the result is an empty sample marked interrupted, as on the CPU.
+            Err(Error::Interrupted(_)) => None,
+            other => other?,
+        };
         #[cfg(feature = "gpu")]
         let oracle: &dyn Oracle = match &gpu {
             Some(o) => o,
@@ -585,6 +590,7 @@ impl Mesher {
             precision: self.precision,
             level_slice: self.level_slice.unwrap_or(0),
             device_values: self.device_values,
+            cancel: self.cancel.clone(),
         };
         GpuOracle::with_options(gpu, f, options).map(Some)
     }

@@ -425,15 +425,24 @@ fn trace_with<const W: usize>(
     let codec = ctx.codec;
     let bbox = ctx.domain.bbox.map(<[_]>::to_vec);
     let mut engine: Engine<W> = Engine::new(ctx);
-    for s in seeds {
-        if engine.stats.stopped.is_some() {
-            break;
+    let traced = (|| {
+        for s in seeds {
+            if engine.stats.stopped.is_some() {
+                return Ok(());
+            }
+            engine.trace_from_point(s)?;
         }
-        engine.trace_from_point(s)?;
-    }
-    if search > 0 && engine.stats.stopped.is_none() {
-        let b = bbox.expect("checked by trace()");
-        engine.trace_from_box(f, &b, search, search_seed)?;
+        if search > 0 && engine.stats.stopped.is_none() {
+            let b = bbox.expect("checked by trace()");
+            engine.trace_from_box(f, &b, search, search_seed)?;
+        }
+        Ok(())
+    })();
+    match traced {
+        // An oracle stopped by the cancel flag (a wait on a device): the levels accepted
+        // so far are the sample, as for a stop between levels.
+        Err(Error::Interrupted(_)) => engine.stats.stopped = Some(StopReason::Interrupted),
+        other => other?,
     }
     let mut stats = engine.stats.clone();
     stats.memory_bytes = engine.bytes() as u64;

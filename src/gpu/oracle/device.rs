@@ -2,7 +2,7 @@
 //! reading its outputs back, pipelines, and the encoding of reals for the shaders.
 
 use std::borrow::Cow;
-use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::MutexGuard;
 use std::time::Instant;
 
@@ -259,16 +259,29 @@ impl GpuOracle<'_> {
         Ok(results)
     }
 
-    /// Blocks until the device has done the submission `index` (None: everything submitted).
-    fn wait(&self, index: Option<wgpu::SubmissionIndex>) -> Result<()> {
-        self.gpu
-            .device
-            .poll(wgpu::PollType::Wait {
-                submission_index: index,
-                timeout: None,
-            })
-            .map(|_| ())
-            .map_err(|e| Error::Gpu(format!("waiting for the device: {e}")))
+    /// Blocks until the device has done the submission `index` (None: everything
+    /// submitted). With a stop flag ([`GpuOptions::cancel`](super::GpuOptions::cancel)) it
+    /// looks at the flag every [`COMPILE_POLL`] and ends with [`Error::Interrupted`] when it
+    /// is raised: a driver may compile a shader on its first dispatch, for minutes.
+    pub(super) fn wait(&self, index: Option<wgpu::SubmissionIndex>) -> Result<()> {
+        let timeout = self.cancel().map(|_| COMPILE_POLL);
+        loop {
+            let polled = self.gpu.device.poll(wgpu::PollType::Wait {
+                submission_index: index.clone(),
+                timeout,
+            });
+            match polled {
+                Ok(_) => return Ok(()),
+                Err(wgpu::PollError::Timeout) if timeout.is_some() => {
+                    if self.cancel().is_some_and(|c| c.load(Ordering::Relaxed)) {
+                        return Err(Error::Interrupted(
+                            "stopped while waiting for the device".into(),
+                        ));
+                    }
+                }
+                Err(e) => return Err(Error::Gpu(format!("waiting for the device: {e}"))),
+            }
+        }
     }
 
     pub(super) fn encode_reals(&self, v: &[f64]) -> Vec<u8> {
@@ -322,7 +335,51 @@ pub(super) fn add_time(counter: &AtomicU64, since: Instant) {
     counter.fetch_add(since.elapsed().as_nanos() as u64, Ordering::Relaxed);
 }
 
-pub(super) fn pipeline(gpu: &Gpu, src: &str, label: &str) -> Result<wgpu::ComputePipeline> {
+/// The compute pipeline of WGSL `src`. With a stop flag the driver compiles on a thread of
+/// its own: raising the flag ends the wait with [`Error::Interrupted`] within
+/// [`COMPILE_POLL`] (some drivers take minutes over a large system), the compile left to
+/// finish there.
+pub(super) fn pipeline(
+    gpu: &Gpu,
+    src: &str,
+    label: &str,
+    cancel: Option<&AtomicBool>,
+) -> Result<wgpu::ComputePipeline> {
+    use std::sync::mpsc::RecvTimeoutError;
+    let Some(cancel) = cancel else {
+        return compile(gpu, src, label);
+    };
+    let stopped = || Error::Interrupted(format!("stopped while the {label} shader compiled"));
+    if cancel.load(Ordering::Relaxed) {
+        return Err(stopped());
+    }
+    let (tx, rx) = std::sync::mpsc::channel();
+    let (gpu, src, name) = (gpu.clone(), src.to_owned(), label.to_owned());
+    std::thread::Builder::new()
+        .name(format!("isomesh-compile-{label}"))
+        .spawn(move || {
+            let _ = tx.send(compile(&gpu, &src, &name));
+        })
+        .map_err(|e| Error::Gpu(format!("{label} pipeline: no thread to compile on: {e}")))?;
+    loop {
+        match rx.recv_timeout(COMPILE_POLL) {
+            Ok(built) => return built,
+            Err(RecvTimeoutError::Timeout) if cancel.load(Ordering::Relaxed) => {
+                return Err(stopped())
+            }
+            Err(RecvTimeoutError::Timeout) => {}
+            Err(RecvTimeoutError::Disconnected) => {
+                return Err(Error::Gpu(format!("{label} pipeline: the compile failed")))
+            }
+        }
+    }
+}
+
+/// How often a wait for a shader compile looks at the stop flag.
+const COMPILE_POLL: std::time::Duration = std::time::Duration::from_millis(20);
+
+/// Compiles WGSL `src` into a compute pipeline on this thread.
+fn compile(gpu: &Gpu, src: &str, label: &str) -> Result<wgpu::ComputePipeline> {
     let dev = &gpu.device;
     let scope = dev.push_error_scope(wgpu::ErrorFilter::Validation);
     let module = dev.create_shader_module(wgpu::ShaderModuleDescriptor {

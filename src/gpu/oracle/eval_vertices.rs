@@ -29,7 +29,12 @@ impl GpuOracle<'_> {
                 "the GPU evaluates only functions written in the equation language".into(),
             ));
         };
-        let built = pipeline(&self.gpu, &shader(system.values(), self.precision)?, label)?;
+        let built = pipeline(
+            &self.gpu,
+            &shader(system.values(), self.precision)?,
+            label,
+            self.cancel(),
+        )?;
         Ok(cell.get_or_init(|| built))
     }
 

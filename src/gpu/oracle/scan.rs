@@ -100,7 +100,7 @@ impl GpuOracle<'_> {
         if let Some(p) = self.scan.get() {
             return Ok(p);
         }
-        let built = pipeline(&self.gpu, &scan_shader(d, self.k)?, "scan")?;
+        let built = pipeline(&self.gpu, &scan_shader(d, self.k)?, "scan", self.cancel())?;
         Ok(self.scan.get_or_init(|| built))
     }
 

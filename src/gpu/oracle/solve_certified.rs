@@ -37,6 +37,7 @@ impl GpuOracle<'_> {
             &self.gpu,
             &solve_certified_shader(self.k, self.precision)?,
             "solve_certified",
+            self.cancel(),
         )?;
         Ok(self.solve_certified.get_or_init(|| built))
     }

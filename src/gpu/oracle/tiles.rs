@@ -123,7 +123,7 @@ impl GpuOracle<'_> {
         let values = self.f_pipeline(&self.tile_values, tile_values_shader, "tile_values")?;
         let built = |cell: &'_ OnceLock<wgpu::ComputePipeline>, src: Result<String>, label| {
             if cell.get().is_none() {
-                let p = pipeline(&self.gpu, &src?, label)?;
+                let p = pipeline(&self.gpu, &src?, label, self.cancel())?;
                 let _ = cell.set(p);
             }
             Ok::<_, Error>(())
@@ -435,13 +435,7 @@ impl GpuOracle<'_> {
     /// Waits for a tile and reads its counters and records.
     fn finish_tile(&self, slot: &Slot, run: InFlight, k: usize) -> Result<Found> {
         let started = Instant::now();
-        self.gpu
-            .device
-            .poll(wgpu::PollType::Wait {
-                submission_index: Some(run.index),
-                timeout: None,
-            })
-            .map_err(|e| Error::Gpu(format!("waiting for the device: {e}")))?;
+        self.wait(Some(run.index))?;
         run.mapped
             .recv()
             .map_err(|_| Error::Gpu("the readback was dropped".into()))?
