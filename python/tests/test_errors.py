@@ -208,3 +208,38 @@ def test_complex_values_wrong_seed_lengths_and_control_characters():
     with pytest.raises(ValueError) as info:
         isomesh.Problem(["x^2 + y\x00 - 1"], ambient_dim=3)
     assert "\x00" not in str(info.value) and "\\0" in str(info.value), str(info.value)
+
+
+def test_a_function_may_trace_its_own_problem():
+    # The function runs a trace and a scan of its own problem (1 and 2 threads) while the
+    # outer run waits on it: each run has its own pool and stop flag, so neither waits on
+    # the other. A watchdog turns a deadlock into a failure.
+    import threading
+
+    calls = {"n": 0}
+    inner = []
+
+    def f(x):
+        calls["n"] += 1
+        if calls["n"] in (3, 30):
+            for threads in (1, 2):
+                inner.append(p.trace(threads=threads).simplex_count)
+                inner.append(p.scan(box=[[-1.5, 1.5]] * 3, threads=threads).simplex_count)
+        return x[:, 0] ** 2 + x[:, 1] ** 2 + x[:, 2] ** 2 - 1
+
+    p = isomesh.Problem(function=f, ambient_dim=3, codim=1, seeds=[[1, 0, 0]], edge=0.2)
+    for threads, mode in [(1, "trace"), (2, "trace"), (1, "scan"), (2, "scan")]:
+        calls["n"], got = 0, {}
+
+        def run():
+            if mode == "trace":
+                got["n"] = p.trace(threads=threads).simplex_count
+            else:
+                got["n"] = p.scan(box=[[-1.5, 1.5]] * 3, threads=threads).simplex_count
+
+        t = threading.Thread(target=run, daemon=True)
+        t.start()
+        t.join(120)
+        assert not t.is_alive(), f"{mode} with {threads} threads: deadlocked"
+        assert got["n"] > 0 and all(n == got["n"] for n in inner), (mode, threads, got, inner)
+        inner.clear()
