@@ -73,7 +73,7 @@ pub enum Error {
     /// Work that stopped (or did not start) because the heap would pass the memory limit.
     #[error(
         "{what} needs more than the memory limit of {}: raise the limit (--max-memory) or \
-         write smaller equations",
+         {advice}",
         crate::memory::human_bytes(*limit)
     )]
     MemoryLimit {
@@ -81,6 +81,8 @@ pub enum Error {
         what: String,
         /// The limit, bytes.
         limit: u64,
+        /// What else would help ("write smaller equations"...).
+        advice: String,
     },
     /// An input/output failure: what was read or written (a path, "standard output") and
     /// the system's error, kept as the source.

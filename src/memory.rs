@@ -135,12 +135,13 @@ pub fn over_limit() -> Option<u64> {
 
 /// An error when `bytes` more would take the counted heap past this thread's limit (set by
 /// [`within`]): for work that needs a known amount at once, checked before it starts.
-pub(crate) fn ensure_room(what: &str, bytes: u64) -> crate::Result<()> {
+pub(crate) fn ensure_room(what: &str, bytes: u64, advice: &str) -> crate::Result<()> {
     let limit = LIMIT.get();
     if live_bytes() > 0 && (live_bytes() as u64).saturating_add(bytes) > limit {
         return Err(crate::Error::MemoryLimit {
             what: format!("{what} (about {})", human_bytes(bytes)),
             limit,
+            advice: advice.into(),
         });
     }
     Ok(())

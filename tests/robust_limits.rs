@@ -487,6 +487,8 @@ fn a_spec_of_many_seeds_is_refused_under_a_limit_its_reading_would_pass() {
     );
     assert_eq!(o.status.code(), Some(1), "{}", text(&o));
     assert!(text(&o).contains("reading the spec"), "{}", text(&o));
+    // The advice names the seeds, not the equations.
+    assert!(text(&o).contains("fewer seed points"), "{}", text(&o));
 }
 
 /// An f of a scale far from 1 is found by the seed search and from seeds as the same f at

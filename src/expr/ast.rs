@@ -317,6 +317,7 @@ impl Expr {
             .map_err(|limit| crate::Error::MemoryLimit {
                 what: "differentiating the equations".into(),
                 limit,
+                advice: "write smaller equations".into(),
             })
     }
 

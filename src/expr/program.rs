@@ -132,6 +132,7 @@ impl Program {
             crate::Error::MemoryLimit {
                 what: "compiling the equations".into(),
                 limit,
+                advice: "write smaller equations".into(),
             }
         })
     }

@@ -279,7 +279,7 @@ const TOML_BYTES_PER_VALUE: u64 = 400;
 
 /// The heap [`Spec::from_toml`] asks for before it reads `text`: the separators of values
 /// are counted outside strings (an equation's commas are text, not values).
-fn toml_bytes(text: &str) -> u64 {
+fn toml_bytes(text: &str) -> (u64, u64) {
     let (mut quote, mut escaped, mut values) = (None, false, 0u64);
     for b in text.bytes() {
         match quote {
@@ -291,13 +291,24 @@ fn toml_bytes(text: &str) -> u64 {
             None => values += (b == b',' || b == b'[') as u64,
         }
     }
-    TOML_BYTES_PER_BYTE * text.len() as u64 + TOML_BYTES_PER_VALUE * values
+    (
+        TOML_BYTES_PER_BYTE * text.len() as u64 + TOML_BYTES_PER_VALUE * values,
+        values,
+    )
 }
 
 impl Spec {
     /// Parses TOML text.
     pub fn from_toml(text: &str) -> Result<Spec> {
-        crate::memory::ensure_room("reading the spec", toml_bytes(text))?;
+        let (bytes, values) = toml_bytes(text);
+        // Mostly array values: seed points (or a box, a matrix) rather than equations.
+        let advice = if values * TOML_BYTES_PER_VALUE > bytes / 2 {
+            "give fewer seed points (each number in a spec's arrays takes about 400 bytes \
+             while it is read)"
+        } else {
+            "write smaller equations"
+        };
+        crate::memory::ensure_room("reading the spec", bytes, advice)?;
         let mut spec: Spec = toml::from_str(text).map_err(|e| Error::Spec(e.to_string()))?;
         if let Ok(lits) = toml::from_str::<Literals>(text) {
             let at =
@@ -314,7 +325,11 @@ impl Spec {
         use std::io::Read;
         let io = |e| Error::io(path.display(), e);
         if let Ok(meta) = std::fs::metadata(path) {
-            crate::memory::ensure_room("reading the spec file", meta.len().min(MAX_SPEC_BYTES))?;
+            crate::memory::ensure_room(
+                "reading the spec file",
+                meta.len().min(MAX_SPEC_BYTES),
+                "write a shorter spec",
+            )?;
         }
         let mut bytes = Vec::new();
         std::fs::File::open(path)
@@ -418,11 +433,11 @@ mod tests {
         let text = |body: &str| 10 * body.len() as u64;
         // Commas of an equation (and an escaped quote before them) are text.
         let eq = r#"equations = ["max(x1, x2) - \"a, b\""]"#;
-        assert_eq!(toml_bytes(eq), text(eq) + 400);
+        assert_eq!(toml_bytes(eq), (text(eq) + 400, 1));
         let lit = "equations = ['atan2(x1, x2)', 'x3']";
-        assert_eq!(toml_bytes(lit), text(lit) + 2 * 400);
+        assert_eq!(toml_bytes(lit), (text(lit) + 2 * 400, 2));
         // A seed point: its array and two commas, and the list's comma and bracket.
         let seeds = "seeds = [[1, 0, 0],]";
-        assert_eq!(toml_bytes(seeds), text(seeds) + 5 * 400);
+        assert_eq!(toml_bytes(seeds), (text(seeds) + 5 * 400, 5));
     }
 }
