@@ -221,15 +221,35 @@ impl<N: Width> KeySet<N> {
             .map(|k| hasher.hash_one(k))
             .collect();
         self.arena.extend_from_slice(keys);
+        // The batch's positions bucketed by table (a counting sort, in order), so that each
+        // table's thread reads only its own keys and grows its table once.
+        let mut ends = [0usize; SHARDS];
+        for &h in &hashes {
+            ends[shard(h)] += 1;
+        }
+        let mut at = 0;
+        for e in &mut ends {
+            at += *e;
+            *e = at;
+        }
+        let mut next: [usize; SHARDS] =
+            std::array::from_fn(|t| if t == 0 { 0 } else { ends[t - 1] });
+        let mut order = vec![0u32; count];
+        for (i, &h) in hashes.iter().enumerate() {
+            let t = shard(h);
+            order[next[t]] = i as u32;
+            next[t] += 1;
+        }
         let arena = &self.arena;
+        let rehash = |&j: &u32| hasher.hash_one(&arena[j as usize * w..(j as usize + 1) * w]);
         self.tables
             .par_iter_mut()
             .enumerate()
             .for_each(|(t, table)| {
-                for (i, &h) in hashes.iter().enumerate().filter(|(_, &h)| shard(h) == t) {
-                    table.insert_unique(h, (start + i) as u32, |&j| {
-                        hasher.hash_one(&arena[j as usize * w..(j as usize + 1) * w])
-                    });
+                let own = &order[if t == 0 { 0 } else { ends[t - 1] }..ends[t]];
+                table.reserve(own.len(), rehash);
+                for &i in own {
+                    table.insert_unique(hashes[i as usize], start as u32 + i, rehash);
                 }
             });
         Ok(start..start + count)
