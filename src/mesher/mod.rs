@@ -477,7 +477,7 @@ impl Mesher {
         #[cfg(feature = "gpu")]
         let gpu = match self.gpu_oracle(&mut warnings) {
             // Stopped while a shader compiled: the trace below stops at once on the raised
-            // flag, so the result is an empty sample marked interrupted, as on the CPU.
+            // flag (keeping at most its seeds' simplices), marked interrupted, as on the CPU.
             Err(Error::Interrupted(_)) => None,
             other => other?,
         };

@@ -223,17 +223,15 @@ impl<N: Width> KeySet<N> {
         self.arena.extend_from_slice(keys);
         // The batch's positions bucketed by table (a counting sort, in order), so that each
         // table's thread reads only its own keys and grows its table once.
-        let mut ends = [0usize; SHARDS];
+        // Table t's positions are order[bounds[t]..bounds[t + 1]].
+        let mut bounds = [0usize; SHARDS + 1];
         for &h in &hashes {
-            ends[shard(h)] += 1;
+            bounds[shard(h) + 1] += 1;
         }
-        let mut at = 0;
-        for e in &mut ends {
-            at += *e;
-            *e = at;
+        for t in 0..SHARDS {
+            bounds[t + 1] += bounds[t];
         }
-        let mut next: [usize; SHARDS] =
-            std::array::from_fn(|t| if t == 0 { 0 } else { ends[t - 1] });
+        let mut next = bounds;
         let mut order = vec![0u32; count];
         for (i, &h) in hashes.iter().enumerate() {
             let t = shard(h);
@@ -246,7 +244,7 @@ impl<N: Width> KeySet<N> {
             .par_iter_mut()
             .enumerate()
             .for_each(|(t, table)| {
-                let own = &order[if t == 0 { 0 } else { ends[t - 1] }..ends[t]];
+                let own = &order[bounds[t]..bounds[t + 1]];
                 table.reserve(own.len(), rehash);
                 for &i in own {
                     table.insert_unique(hashes[i as usize], start as u32 + i, rehash);
