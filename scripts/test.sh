@@ -16,10 +16,11 @@ rm -rf "$VENV"
 python3 -m venv "$VENV"
 "$VENV/bin/python" -m pip install --quiet --upgrade pip
 "$VENV/bin/python" -m pip install --quiet pytest numpy meshio trimesh "dask[distributed]"
-# The wheel is built with the dev profile (opt-level 2 like the tests): the isomesh crate and
-# every dependency that the Rust tests compiled are reused; only pyo3, numpy and the bindings
-# compile here.
-MATURIN_PEP517_ARGS="--profile dev --locked" "$VENV/bin/python" -m pip install --quiet ./python
+# The wheel is built with the dev profile (opt-level 2 like the tests) and the features the
+# tests gave its dependencies (`share-test-build`): the isomesh crate and every dependency that
+# the Rust tests compiled are reused; only pyo3, numpy and the bindings compile here.
+MATURIN_PEP517_ARGS="--profile dev --locked --features share-test-build" \
+    "$VENV/bin/python" -m pip install --quiet ./python
 export ISOMESH_CLI="$CARGO_TARGET_DIR/debug/isomesh"
 cd python/tests
 set +e
