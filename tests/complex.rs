@@ -270,6 +270,18 @@ fn boxes_and_inequalities_cut_a_boundary() {
     }
 }
 
+/// The rim (crossings outside the domain next to S) as sorted (key, point) pairs.
+fn rim(s: &Sample) -> Vec<(Vec<u64>, Vec<u64>)> {
+    let mut rim: Vec<_> = (0..s.rim_len())
+        .map(|r| {
+            let point = s.rim_point(r).iter().map(|x| x.to_bits()).collect();
+            (s.rim_key(r).to_vec(), point)
+        })
+        .collect();
+    rim.sort_unstable();
+    rim
+}
+
 #[test]
 fn the_scan_and_the_trace_give_the_same_clipped_complex() {
     let p = problem("complex-cosine", &[("edge", 0.25)]);
@@ -282,13 +294,60 @@ fn the_scan_and_the_trace_give_the_same_clipped_complex() {
     let scanned = isomesh::trace::exhaustive(&p.system, &tri, &oracle, &opts).unwrap();
     let (traced, c, t) = complex(&p);
     assert_eq!(scanned.sorted_keys(), traced.sorted_keys());
-    assert_eq!(scanned.rim_len(), traced.rim_len());
+    assert_eq!(rim(&scanned), rim(&traced));
     let c2 = Complex::build(&scanned, &p.system, p.bbox.as_deref()).unwrap();
     let t2 = c2.topology();
     assert_eq!(t.cells, t2.cells);
     assert_eq!(t.boundary_cells, t2.boundary_cells);
     assert!(t2.manifold && t2.euler_characteristic == 1);
     assert_eq!(c.vertex_count(), c2.vertex_count());
+}
+
+/// The scan looks for its rim only from the crossings within an edge of a box face (or from
+/// all of them when inequalities cut M): it finds the trace's rim, keys and points bit for
+/// bit, for boxes that cut M on every side and an inequality.
+#[test]
+fn the_scan_finds_the_rim_of_the_trace() {
+    type Case<'a> = (&'a str, &'a [(&'a str, f64)], Vec<[f64; 2]>);
+    let cases: [Case; 4] = [
+        // Each cut leaves M in one piece (so that the trace finds all of it). A torus cut by
+        // a box on four sides, one face nearly tangent to the tube.
+        (
+            "torus",
+            &[("edge", 0.06)],
+            vec![[-0.9, 1.05], [-1.5, 0.7], [-0.21, 0.399]],
+        ),
+        (
+            "sphere",
+            &[("edge", 0.05)],
+            vec![[-0.8, 0.55], [-1.1, 1.1], [-1.1, 0.3]],
+        ),
+        // A circle in R^3 (k = 2) cut by a box.
+        (
+            "sphere",
+            &[("m", 1.0), ("d", 3.0), ("edge", 0.04)],
+            vec![[-1.2, 0.4], [-0.3, 1.2], [-0.2, 0.2]],
+        ),
+        // The flat torus inside the box, cut by a ball: every crossing may have a neighbour
+        // outside.
+        ("cut-flat-torus", &[("edge", 0.3)], vec![[-1.1, 1.1]; 4]),
+    ];
+    for (name, params, bbox) in cases {
+        let p = problem(name, params);
+        let tri = p.triangulation.build(p.dim()).unwrap();
+        let oracle = CpuOracle::new(&p.system);
+        // No seed (some lie outside the box): the search finds every component.
+        let opts = TraceOptions {
+            bbox: Some(bbox),
+            search_samples: Some(4096),
+            ..TraceOptions::default()
+        };
+        let traced = trace(&p.system, &tri, &oracle, &opts).unwrap();
+        let scanned = isomesh::trace::exhaustive(&p.system, &tri, &oracle, &opts).unwrap();
+        assert_eq!(scanned.sorted_keys(), traced.sorted_keys(), "{name}");
+        assert!(traced.rim_len() > 0, "{name}: the box cuts nothing");
+        assert_eq!(rim(&scanned), rim(&traced), "{name}");
+    }
 }
 
 #[test]

@@ -6,7 +6,7 @@ use std::ops::Range;
 
 use rayon::prelude::*;
 
-use super::frontier::{sort, Back, Found, Frontier, Verdicts};
+use super::frontier::{sort, Back, Found, Frontier, Members, Verdicts};
 use super::table::{Key, Table};
 use super::{Decisions, Progress, StopReason, TraceContext, TraceStats, DEFAULT_EXTENT_STEPS};
 use crate::cpu::solve::Status;
@@ -103,21 +103,21 @@ impl<'a, const W: usize> Engine<'a, W> {
         self.must_stop_growing(next_bytes, 0)
     }
 
-    /// With no box: whether a simplex of `range` (in S) lies more than
-    /// [`DEFAULT_EXTENT_STEPS`] lattice steps from every seed.
-    fn beyond_extent(&self, range: Range<usize>) -> bool {
-        self.beyond(range, DEFAULT_EXTENT_STEPS)
+    /// With no box: whether a simplex of `members` lies more than [`DEFAULT_EXTENT_STEPS`]
+    /// lattice steps from every seed.
+    fn beyond_extent(&self, members: &Members) -> bool {
+        self.beyond(members, DEFAULT_EXTENT_STEPS)
     }
 
-    /// With no box: whether a simplex of `range` (in S) lies more than `steps` lattice steps
+    /// With no box: whether a simplex of `members` lies more than `steps` lattice steps
     /// from every seed.
-    fn beyond(&self, range: Range<usize>, steps: u32) -> bool {
+    fn beyond(&self, members: &Members, steps: u32) -> bool {
         let d = self.ctx.d;
         if self.ctx.domain.bbox.is_some() || self.origins.is_empty() {
             return false;
         }
         let mut v = [0i32; crate::triangulation::MAX_DIM];
-        range.into_iter().any(|i| {
+        members.iter().any(|i| {
             self.ctx.codec.decode_vertex(self.s.key(i), &mut v[..d]);
             self.origins.chunks_exact(d).all(|o| {
                 o.iter()
@@ -132,17 +132,17 @@ impl<'a, const W: usize> Engine<'a, W> {
     pub fn run(&mut self, frontier: Range<usize>) -> Result<()> {
         let mut front = Frontier {
             rows: self.rows_of(frontier.clone())?,
-            range: frontier,
+            members: Members::Range(frontier),
             back: Back::default(),
         };
-        while !front.range.is_empty() {
+        while !front.members.is_empty() {
             // Points only serve to test the domain here (the sample computes its own).
             let with_points = !self.ctx.domain.is_everywhere();
             let Some(found) = self.step(&front, with_points)? else {
                 return Ok(());
             };
             front = self.accept(found)?;
-            if self.beyond_extent(front.range.clone()) {
+            if self.beyond_extent(&front.members) {
                 self.stats.stopped = Some(StopReason::NoBox {
                     steps: DEFAULT_EXTENT_STEPS,
                     distance: DEFAULT_EXTENT_STEPS as f64 * self.ctx.tri.edge(),
@@ -150,7 +150,7 @@ impl<'a, const W: usize> Engine<'a, W> {
                 return Ok(());
             }
             if self.s.len() > super::NO_BOX_SIMPLICES
-                && self.beyond(front.range.clone(), super::NO_BOX_BUDGET_STEPS)
+                && self.beyond(&front.members, super::NO_BOX_BUDGET_STEPS)
             {
                 self.stats.stopped = Some(StopReason::NoBoxTooLarge {
                     simplices: self.s.len() as u64,
@@ -158,12 +158,12 @@ impl<'a, const W: usize> Engine<'a, W> {
                 return Ok(());
             }
             self.stats.levels += 1;
-            self.stats.widest_level = self.stats.widest_level.max(front.range.len() as u64);
+            self.stats.widest_level = self.stats.widest_level.max(front.members.len() as u64);
             if let Some(p) = self.ctx.progress {
                 p(&Progress {
                     simplices: self.s.len(),
                     level: self.stats.levels,
-                    frontier: front.range.len(),
+                    frontier: front.members.len(),
                     vertices: self.verts.len(),
                 });
             }
@@ -172,12 +172,19 @@ impl<'a, const W: usize> Engine<'a, W> {
     }
 
     /// Finds the rim of a sample built elsewhere (the scan): the crossed neighbours of S
-    /// outside the domain.
-    pub fn complete_rim(&mut self) -> Result<()> {
-        let all = 0..self.s.len();
+    /// outside the domain, looked for from the simplices `border` of S (indices, the only
+    /// ones that may have such neighbours). Every vertex of S is cached.
+    pub fn complete_rim(&mut self, border: Vec<u32>) -> Result<()> {
+        let all = self.rows_of(0..self.s.len())?;
+        let n = self.ctx.k + 1;
+        let rows = border
+            .iter()
+            .flat_map(|&i| &all[i as usize * n..(i as usize + 1) * n])
+            .copied()
+            .collect();
         let front = Frontier {
-            rows: self.rows_of(all.clone())?,
-            range: all,
+            members: Members::List(border),
+            rows,
             back: Back::default(),
         };
         if let Some(found) = self.step(&front, true)? {
@@ -405,7 +412,7 @@ impl<'a, const W: usize> Engine<'a, W> {
         }
         self.s.insert_new_batch(inside.as_flattened())?;
         Ok(Frontier {
-            range: start..self.s.len(),
+            members: Members::Range(start..self.s.len()),
             rows,
             back,
         })

@@ -69,12 +69,48 @@ impl Back {
     }
 }
 
-/// The simplices a level starts from (a range of S) with their vertex-cache rows
-/// (k + 1 each) and their way back.
+/// The simplices a level starts from with their vertex-cache rows (k + 1 each) and their
+/// way back.
 pub(crate) struct Frontier {
-    pub range: Range<usize>,
+    pub members: Members,
     pub rows: Vec<u32>,
     pub back: Back,
+}
+
+/// Which simplices of S a frontier holds.
+pub(crate) enum Members {
+    /// A range of S: a trace's last level.
+    Range(Range<usize>),
+    /// Listed by index in S: the scan's simplices near the domain's border.
+    List(Vec<u32>),
+}
+
+impl Members {
+    /// How many.
+    pub fn len(&self) -> usize {
+        match self {
+            Members::Range(r) => r.len(),
+            Members::List(l) => l.len(),
+        }
+    }
+
+    /// Whether there is none.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// The index in S of member `i`.
+    pub fn get(&self, i: usize) -> usize {
+        match self {
+            Members::Range(r) => r.start + i,
+            Members::List(l) => l[i] as usize,
+        }
+    }
+
+    /// The indices in S of every member, in order.
+    pub fn iter(&self) -> impl Iterator<Item = usize> + '_ {
+        (0..self.len()).map(|i| self.get(i))
+    }
 }
 
 /// Runs `f` on consecutive ranges covering `0..len`, about four per thread and at least

@@ -166,7 +166,7 @@ impl<'e, 'a, const W: usize> Namer<'e, 'a, W> {
         let (d, k) = (e.ctx.d, e.ctx.k);
         e.ctx
             .codec
-            .decode_into(e.s.key(self.frontier.range.start + i), &mut self.sigma);
+            .decode_into(e.s.key(self.frontier.members.get(i)), &mut self.sigma);
         let back = self.frontier.back.of(i);
         self.work.skip.resize(back.len() * d, 0);
         for (&b, v) in back.iter().zip(self.work.skip.chunks_exact_mut(d)) {
@@ -301,7 +301,7 @@ impl<const W: usize> Engine<'_, W> {
         frontier: &Frontier,
         with_points: bool,
     ) -> Result<Option<Found<W>>> {
-        if frontier.range.is_empty() {
+        if frontier.members.is_empty() {
             return Ok(Some(self.found([], with_points)));
         }
         let rows = &frontier.rows[..];
@@ -328,7 +328,7 @@ impl<const W: usize> Engine<'_, W> {
             let sigma = self
                 .ctx
                 .codec
-                .decode(self.s.key(frontier.range.start + from as usize));
+                .decode(self.s.key(frontier.members.get(from as usize)));
             let mut via = 0;
             let mut err = Ok(());
             sigma.for_each_cofacet_apex(|tau, p| {
@@ -351,11 +351,14 @@ impl<const W: usize> Engine<'_, W> {
 
     /// The most cofacets of a frontier simplex, from a sample of up to 16 spread over it.
     fn cofacets_per_simplex(&self, frontier: &Frontier) -> usize {
-        let r = &frontier.range;
-        let step = (r.len() / 16).max(1);
-        (r.start..r.end)
+        let members = &frontier.members;
+        let step = (members.len() / 16).max(1);
+        (0..members.len())
             .step_by(step)
-            .map(|i| self.ctx.codec.decode(self.s.key(i)).cofacet_count())
+            .map(|i| {
+                let key = self.s.key(members.get(i));
+                self.ctx.codec.decode(key).cofacet_count()
+            })
             .max()
             .map_or(1, |c| usize::try_from(c).unwrap_or(usize::MAX))
     }
@@ -375,7 +378,7 @@ impl<const W: usize> Engine<'_, W> {
         &mut self,
         frontier: &Frontier,
     ) -> Result<Option<(Vec<Candidate<W>>, Decided<W>)>> {
-        let len = frontier.range.len();
+        let len = frontier.members.len();
         let (d, n) = (self.ctx.d, self.ctx.k + 1);
         let per_cand = size_of::<Candidate<W>>() + n * 12 + d * 8 + 16;
         // Naming holds a candidate per cofacet (and deferred ones): in high dimensions many

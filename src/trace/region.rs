@@ -101,6 +101,11 @@ impl<'a> Domain<'a> {
         }
     }
 
+    /// Whether `f` has boundary inequalities (besides the box).
+    pub fn has_inequalities(&self) -> bool {
+        self.f.boundary_count() > 0
+    }
+
     /// Whether every point is inside (no box, no inequality).
     pub fn is_everywhere(&self) -> bool {
         self.constraints == 0

@@ -45,12 +45,113 @@ const TARGET_CANDIDATES: usize = 1 << 20;
 /// Fewest and most vertices (cube bases) per batch.
 const BATCH_RANGE: (usize, usize) = (1 << 12, 1 << 20);
 
-/// What a scan found: S (keys in sorted order), counters, and with device values the CPU's
-/// values it computed (lattice coordinates, rows of d, and values, rows of k).
+/// What a scan found: S (keys in sorted order), the simplices of S near the domain's border
+/// (indices into S, in order), counters, and with device values the CPU's values it computed
+/// (lattice coordinates, rows of d, and values, rows of k).
 pub(crate) struct Scanned<const W: usize> {
     pub table: Table<W>,
+    pub border: Vec<u32>,
     pub stats: TraceStats,
     pub cpu_values: Option<(Vec<i32>, Vec<f64>)>,
+}
+
+/// A crossed simplex a scan found: its key, and whether its point is near the domain's
+/// border ([`Border::near`]).
+pub(super) type Hit<const W: usize> = (Key<W>, bool);
+
+/// The crossed simplices a scan has found so far, in any order.
+pub(super) struct Found<'a, const W: usize> {
+    border: Border<'a>,
+    hits: Vec<Hit<W>>,
+}
+
+impl<'a, const W: usize> Found<'a, W> {
+    /// None yet, in `ctx`'s domain.
+    pub(super) fn new(ctx: &TraceContext<'a>) -> Self {
+        Found {
+            border: Border::new(ctx),
+            hits: Vec::new(),
+        }
+    }
+
+    /// Whether none was found.
+    pub(super) fn is_empty(&self) -> bool {
+        self.hits.is_empty()
+    }
+
+    /// The hit of the crossing `key` whose point (in the domain) is `x`.
+    pub(super) fn hit(&self, key: Key<W>, x: &[f64]) -> Hit<W> {
+        (key, self.border.near(x))
+    }
+
+    /// Adds hits.
+    pub(super) fn push(&mut self, hit: Hit<W>) {
+        self.hits.push(hit);
+    }
+
+    /// S in key order, with the border among it.
+    fn into_scanned(
+        self,
+        stats: TraceStats,
+        cpu_values: Option<(Vec<i32>, Vec<f64>)>,
+    ) -> Result<Scanned<W>> {
+        let mut hits = self.hits;
+        hits.par_sort_unstable();
+        hits.dedup_by_key(|h| h.0);
+        let border = (0..hits.len() as u32)
+            .filter(|&i| hits[i as usize].1)
+            .collect();
+        // In place: a key takes no more room than a hit.
+        let keys: Vec<Key<W>> = hits.into_iter().map(|h| h.0).collect();
+        let mut table = Table::fixed();
+        table.insert_new_batch(keys.as_flattened())?;
+        Ok(Scanned {
+            table,
+            border,
+            stats,
+            cpu_values,
+        })
+    }
+}
+
+/// Which crossings may have a crossed neighbour outside the domain: the rim is looked for
+/// from those only.
+///
+/// Neighbours share a (k+1)-simplex, so their points lie within one edge of each other: in
+/// a box, only a crossing whose point lies within an edge of a face may have a neighbour
+/// outside. Boundary inequalities give no such bound: then every crossing may.
+pub(super) struct Border<'a> {
+    bbox: Option<&'a [[f64; 2]]>,
+    reach: f64,
+}
+
+impl<'a> Border<'a> {
+    /// The border of `ctx`'s domain.
+    pub(super) fn new(ctx: &TraceContext<'a>) -> Self {
+        let bbox = ctx.domain.bbox.filter(|_| !ctx.domain.has_inequalities());
+        let edge = ctx.tri.edge();
+        // The edge, padded for the rounding of both points and of the box test.
+        let scale = bbox
+            .into_iter()
+            .flatten()
+            .map(|[lo, hi]| lo.abs().max(hi.abs()))
+            .fold(edge, f64::max);
+        Border {
+            bbox,
+            reach: edge * (1.0 + 1e-6) + 1e-9 * scale,
+        }
+    }
+
+    /// Whether a crossing whose point is `x` (in the domain) may have a crossed neighbour
+    /// outside it.
+    pub(super) fn near(&self, x: &[f64]) -> bool {
+        let Some(bbox) = self.bbox else {
+            return true;
+        };
+        bbox.iter()
+            .zip(x)
+            .any(|(&[lo, hi], &v)| v - lo <= self.reach || hi - v <= self.reach)
+    }
 }
 
 /// Scans the box. Interrupted (Ctrl-C) between batches, it returns what it found so far,
@@ -69,11 +170,7 @@ pub(crate) fn scan<const W: usize>(ctx: &TraceContext, bbox: &[[f64; 2]]) -> Res
                 stopped: Some(StopReason::Interrupted),
                 ..TraceStats::default()
             };
-            return Ok(Scanned {
-                table: Table::fixed(),
-                stats,
-                cpu_values: None,
-            });
+            return Found::new(ctx).into_scanned(stats, None);
         }
         g => g?,
     };
@@ -86,7 +183,7 @@ pub(crate) fn scan<const W: usize>(ctx: &TraceContext, bbox: &[[f64; 2]]) -> Res
         cpu_vertex_evaluations: if on_device { 0 } else { grid.len() as u64 },
         ..TraceStats::default()
     };
-    let mut found: Vec<Key<W>> = Vec::new();
+    let mut found = Found::new(ctx);
     // The candidates of the next batch are generated while this one is decided: on a GPU,
     // the scan shader runs while the host settles the solve shader's verdicts.
     let mut cubes = 0..BATCH_RANGE.0.min(grid.len());
@@ -127,33 +224,25 @@ pub(crate) fn scan<const W: usize>(ctx: &TraceContext, bbox: &[[f64; 2]]) -> Res
         decided?;
         batch = ahead.transpose()?;
     }
-    found.par_sort_unstable();
     // Nothing found: say whether f was NaN or infinite on the grid (such vertices have no
     // sign, so no candidate counted them).
     if found.is_empty() && stats.non_finite == 0 {
         stats.non_finite = grid.values().par_iter().filter(|v| !v.is_finite()).count() as u64;
     }
-    let mut table = Table::fixed();
-    for key in &found {
-        table.insert(key)?;
-    }
-    Ok(Scanned {
-        table,
-        stats,
-        cpu_values: cpu_values.map(|c| c.into_lattice(&grid)),
-    })
+    let cpu_values = cpu_values.map(|c| c.into_lattice(&grid));
+    found.into_scanned(stats, cpu_values)
 }
 
 /// Decides the candidates `cands` of the grid (of device values where `cpu_values` is
-/// given: [`device_values`]) and appends the keys of the crossed ones whose point lies in
-/// the domain to `found`.
+/// given: [`device_values`]) and appends the crossed ones whose point lies in the domain to
+/// `found`.
 fn decide_batch<const W: usize>(
     ctx: &TraceContext,
     grid: &ScanGrid,
     cands: &Candidates,
     cpu_values: Option<&mut device_values::CpuValues<'_>>,
     stats: &mut TraceStats,
-    found: &mut Vec<Key<W>>,
+    found: &mut Found<W>,
 ) -> Result<()> {
     let (d, k) = (ctx.d, ctx.k);
     let Candidates { rows, chains } = cands;
@@ -183,7 +272,7 @@ fn decide_batch<const W: usize>(
             },
         );
     }
-    let hits: Vec<Result<Option<Key<W>>>> = (0..m)
+    let hits: Vec<Result<Option<Hit<W>>>> = (0..m)
         .into_par_iter()
         .filter(|&i| status[i].crossed())
         .map(|i| {
@@ -201,12 +290,12 @@ fn decide_batch<const W: usize>(
                 return Ok(None);
             }
             grid.coords(row[0] as usize, &mut v[..d]);
-            chain_key(ctx, &v[..d], chain).map(Some)
+            chain_key(ctx, &v[..d], chain).map(|key| Some(found.hit(key, &point[..d])))
         })
         .collect();
     for h in hits {
-        if let Some(key) = h? {
-            found.push(key);
+        if let Some(hit) = h? {
+            found.push(hit);
         }
     }
     Ok(())
@@ -335,7 +424,7 @@ fn exhaustive_with<const W: usize>(ctx: TraceContext) -> Result<Sample> {
     if let Some((lattice, values)) = &scanned.cpu_values {
         engine.seed_vertices(lattice, values)?;
     }
-    engine.complete_rim()?;
+    engine.complete_rim(scanned.border)?;
     let mut stats = engine.stats.clone();
     stats.components = components;
     stats.memory_bytes = engine.bytes() as u64;

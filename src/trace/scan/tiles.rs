@@ -15,7 +15,7 @@ use rayon::prelude::*;
 
 use super::candidates::{chains, pass_mask, sign_code, Candidates, BASE};
 use super::device_values::bounded_sign_code;
-use super::Scanned;
+use super::{Found, Hit, Scanned};
 use crate::cpu::batch;
 use crate::cpu::certificate::{CROSSED, OUTSIDE};
 use crate::cpu::solve::Status;
@@ -24,7 +24,6 @@ use std::collections::BTreeMap;
 
 use super::grid::row_spans;
 use crate::trace::region::{in_box, lattice_bounds};
-use crate::trace::table::{Key, Table};
 use crate::trace::{DeviceValues, StopReason, TraceContext, TraceStats};
 use crate::triangulation::{Triangulation, MAX_DIM};
 
@@ -543,7 +542,7 @@ pub(crate) fn scan<const W: usize>(
 ) -> Result<Scanned<W>> {
     let plan = TilePlan::new(ctx.tri, ctx.k, bbox, ctx.max_memory)?;
     let mut stats = TraceStats::default();
-    let mut found: Vec<Key<W>> = Vec::new();
+    let mut found = Found::new(ctx);
     let mut evaluated = Evaluated::default();
     let mut unknown = 0;
     device.scan_tiles(ctx.tri, &plan, &mut |t, got| {
@@ -566,22 +565,14 @@ pub(crate) fn scan<const W: usize>(
         )?;
         Ok(true)
     })?;
-    found.par_sort_unstable();
     if found.is_empty() && stats.non_finite == 0 && unknown > 0 && stats.stopped.is_none() {
         // Nothing found and the device did not know f somewhere: count where the CPU's f
         // is NaN or infinite, as the CPU's scan reports it.
         let grid = super::grid::build_on_cpu(ctx, bbox)?;
         stats.non_finite = grid.values().par_iter().filter(|v| !v.is_finite()).count() as u64;
     }
-    let mut table = Table::fixed();
-    for key in &found {
-        table.insert(key)?;
-    }
-    Ok(Scanned {
-        table,
-        stats,
-        cpu_values: Some(evaluated.into_unique(ctx.d, ctx.k)),
-    })
+    let cpu_values = evaluated.into_unique(ctx.d, ctx.k);
+    found.into_scanned(stats, Some(cpu_values))
 }
 
 impl Evaluated {
@@ -610,7 +601,7 @@ fn settle<const W: usize>(
     tile: &Tile,
     got: &TileFound,
     stats: &mut TraceStats,
-    found: &mut Vec<Key<W>>,
+    found: &mut Found<W>,
     evaluated: &mut Evaluated,
 ) -> Result<()> {
     let (d, k, n) = (ctx.d, ctx.k, ctx.k + 1);
@@ -687,7 +678,7 @@ fn settle<const W: usize>(
             |s, x| ctx.tri.vertex_coords(&lattice[s * d..(s + 1) * d], x),
         );
     }
-    let hits: Vec<Result<Option<Key<W>>>> = (0..kept.len())
+    let hits: Vec<Result<Option<Hit<W>>>> = (0..kept.len())
         .into_par_iter()
         .filter(|&j| status[j].crossed())
         .map(|j| {
@@ -704,12 +695,12 @@ fn settle<const W: usize>(
             }
             let chain = &records[kept[j]][1..=k];
             let v0 = &lattice[row[0] as usize * d..][..d];
-            super::chain_key(ctx, v0, chain).map(Some)
+            super::chain_key(ctx, v0, chain).map(|key| Some(found.hit(key, &point[..d])))
         })
         .collect();
     for h in hits {
-        if let Some(key) = h? {
-            found.push(key);
+        if let Some(hit) = h? {
+            found.push(hit);
         }
     }
     evaluated.lattice.extend_from_slice(&lattice);
