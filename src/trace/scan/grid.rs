@@ -87,6 +87,11 @@ impl ScanGrid {
         &self.codes
     }
 
+    /// Bytes of f's values, their bounds and the sign codes held.
+    pub(crate) fn bytes(&self) -> u64 {
+        (self.values.capacity() * 8 + self.bounds.capacity() * 8 + self.codes.capacity() * 4) as u64
+    }
+
     /// The rows, sorted by id.
     pub(crate) fn rows(&self) -> &[Row] {
         &self.rows

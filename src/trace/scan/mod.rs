@@ -46,13 +46,14 @@ const TARGET_CANDIDATES: usize = 1 << 20;
 const BATCH_RANGE: (usize, usize) = (1 << 12, 1 << 20);
 
 /// What a scan found: S (keys in sorted order), the simplices of S near the domain's border
-/// (indices into S, in order), counters, and with device values the CPU's values it computed
-/// (lattice coordinates, rows of d, and values, rows of k).
+/// (indices into S, in order), counters, with device values the CPU's values it computed
+/// (lattice coordinates, rows of d, and values, rows of k), and the bytes its grid held.
 pub(crate) struct Scanned<const W: usize> {
     pub table: Table<W>,
     pub border: Vec<u32>,
     pub stats: TraceStats,
     pub cpu_values: Option<(Vec<i32>, Vec<f64>)>,
+    pub grid_bytes: u64,
 }
 
 /// A crossed simplex a scan found: its key, and whether its point is near the domain's
@@ -110,6 +111,7 @@ impl<'a, const W: usize> Found<'a, W> {
             border,
             stats,
             cpu_values,
+            grid_bytes: 0,
         })
     }
 }
@@ -230,7 +232,9 @@ pub(crate) fn scan<const W: usize>(ctx: &TraceContext, bbox: &[[f64; 2]]) -> Res
         stats.non_finite = grid.values().par_iter().filter(|v| !v.is_finite()).count() as u64;
     }
     let cpu_values = cpu_values.map(|c| c.into_lattice(&grid));
-    found.into_scanned(stats, cpu_values)
+    let mut scanned = found.into_scanned(stats, cpu_values)?;
+    scanned.grid_bytes = grid.bytes();
+    Ok(scanned)
 }
 
 /// Decides the candidates `cands` of the grid (of device values where `cpu_values` is
@@ -334,33 +338,93 @@ pub(super) fn cancelled(ctx: &TraceContext) -> Result<()> {
 }
 
 /// Connected components of S, two k-simplices being adjacent when they are facets of one
-/// (k+1)-simplex.
+/// (k+1)-simplex: the (k+1)-cofaces of every simplex are keyed and sorted, and the simplices
+/// that share one are joined. The cofaces go in passes, split by key hash, when they would
+/// take more than `budget` bytes at once.
 pub(crate) fn count_components<const W: usize>(
     codec: &crate::triangulation::KeyCodec,
     s: &Table<W>,
+    budget: u64,
 ) -> Result<usize> {
-    let n = s.len();
-    let pairs: Vec<(u32, u32)> = (0..n)
+    let (d, l) = (codec.ambient_dim(), codec.simplex_dim());
+    if l >= d {
+        return Ok(s.len());
+    }
+    // One more bit per coordinate: a coface's base lies one step beyond its facets' at most.
+    let bits = (codec.coord_bits() + 1).min(32);
+    let cofaces = crate::triangulation::KeyCodec::new(d, l + 1, bits)?;
+    let join = Join {
+        codec,
+        cofaces: &cofaces,
+        n: s.len(),
+        key: &|i| s.key(i).as_slice(),
+        budget,
+    };
+    with_width!(cofaces.words(), join_cofaces(&join))
+}
+
+/// What [`join_cofaces`] reads.
+struct Join<'a> {
+    codec: &'a crate::triangulation::KeyCodec,
+    cofaces: &'a crate::triangulation::KeyCodec,
+    n: usize,
+    key: &'a (dyn Fn(usize) -> &'a [u64] + Sync),
+    budget: u64,
+}
+
+/// [`count_components`] with coface keys of V words.
+fn join_cofaces<const V: usize>(join: &Join) -> Result<usize> {
+    let Join {
+        codec,
+        cofaces,
+        n,
+        key,
+        budget,
+    } = *join;
+    let total: u64 = (0..n)
         .into_par_iter()
-        .flat_map_iter(|i| {
-            let own = *s.key(i);
-            let mut out = Vec::new();
-            let mut key = [0u64; W];
-            codec.decode(&own).for_each_cofacet(|tau| {
-                tau.for_each_facet(|f| {
-                    if codec.encode(f, &mut key).is_ok() {
-                        if let Some(j) = s.find(&key) {
-                            if j > i {
-                                out.push((i as u32, j as u32));
-                            }
-                        }
-                    }
-                })
-            });
-            out
-        })
-        .collect();
+        .map(|i| codec.decode(key(i)).cofacet_count())
+        .sum();
+    // Collected in pieces, then joined: twice the entries' bytes at the join.
+    let entry = 2 * size_of::<([u64; V], u32)>() as u64;
+    let passes = (total.saturating_mul(entry) / budget.max(1) + 1).min(u32::MAX as u64);
+    let hasher = foldhash::fast::FixedState::default();
     let mut parent: Vec<u32> = (0..n as u32).collect();
+    let mut components = n;
+    for pass in 0..passes {
+        let mut pairs: Vec<([u64; V], u32)> = (0..n)
+            .into_par_iter()
+            .with_min_len(1024)
+            .flat_map_iter(|i| {
+                let mut out = Vec::new();
+                let mut coface = [0u64; V];
+                codec.decode(key(i)).for_each_cofacet(|tau| {
+                    // A coface past the coordinate range joins nothing (none of S is there).
+                    if cofaces.encode(tau, &mut coface).is_ok()
+                        && (passes == 1
+                            || std::hash::BuildHasher::hash_one(&hasher, coface) % passes == pass)
+                    {
+                        out.push((coface, i as u32));
+                    }
+                });
+                out
+            })
+            .collect();
+        pairs.par_sort_unstable();
+        for run in pairs.chunk_by(|a, b| a.0 == b.0) {
+            for &(_, j) in &run[1..] {
+                if union(&mut parent, run[0].1, j) {
+                    components -= 1;
+                }
+            }
+        }
+    }
+    Ok(components)
+}
+
+/// Joins the sets of `a` and `b` (union-find with path halving, the smaller index the root);
+/// whether they were apart.
+fn union(parent: &mut [u32], a: u32, b: u32) -> bool {
     fn root(p: &mut [u32], mut i: u32) -> u32 {
         while p[i as usize] != i {
             p[i as usize] = p[p[i as usize] as usize];
@@ -368,15 +432,12 @@ pub(crate) fn count_components<const W: usize>(
         }
         i
     }
-    let mut components = n;
-    for (a, b) in pairs {
-        let (ra, rb) = (root(&mut parent, a), root(&mut parent, b));
-        if ra != rb {
-            parent[ra.max(rb) as usize] = ra.min(rb);
-            components -= 1;
-        }
+    let (ra, rb) = (root(parent, a), root(parent, b));
+    if ra == rb {
+        return false;
     }
-    Ok(components)
+    parent[ra.max(rb) as usize] = ra.min(rb);
+    true
 }
 
 /// Every crossed k-simplex of `tri` whose point lies in `opts.bbox` (required), with no seed.
@@ -417,7 +478,17 @@ fn exhaustive_with<const W: usize>(ctx: TraceContext) -> Result<Sample> {
     let bbox = ctx.domain.bbox.expect("checked by exhaustive()");
     let codec = ctx.codec;
     let scanned = scan::<W>(&ctx, bbox)?;
-    let components = count_components(&codec, &scanned.table)?;
+    // For the cofaces at once: what the grid held (it is gone), at least 256 MiB, at most a
+    // quarter of the memory left.
+    let room = ctx
+        .max_memory
+        .saturating_sub(crate::memory::in_use(scanned.table.memory_bytes()));
+    let budget = scanned
+        .grid_bytes
+        .max(256 << 20)
+        .min(room / 4)
+        .max(16 << 20);
+    let components = count_components(&codec, &scanned.table, budget)?;
     let mut engine: Engine<W> = Engine::new(ctx);
     engine.s = scanned.table;
     engine.stats = scanned.stats;
@@ -431,4 +502,70 @@ fn exhaustive_with<const W: usize>(ctx: TraceContext) -> Result<Sample> {
     stats.elapsed_s = start.elapsed().as_secs_f64();
     let tri = engine.ctx.tri;
     sample_from(codec, tri, engine, stats)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::expr::preset;
+    use crate::trace::CpuOracle;
+
+    /// Components counted through shared cofaces, against the known count of pieces a box
+    /// cuts M into, in one pass and in many.
+    #[test]
+    fn components_are_the_pieces_the_box_cuts() {
+        type Case<'a> = (&'a str, &'a [(&'a str, f64)], [[f64; 2]; 3], usize);
+        let cases: [Case; 4] = [
+            // The slab |x| <= 0.3 cuts two arcs of the tube.
+            (
+                "torus",
+                &[("edge", 0.08)],
+                [[-0.3, 0.3], [-2.0, 2.0], [-1.0, 1.0]],
+                2,
+            ),
+            (
+                "torus",
+                &[("edge", 0.08)],
+                [[-2.0, 2.0], [-2.0, 2.0], [-1.0, 1.0]],
+                1,
+            ),
+            // A circle in R^3 (k = 2), cut into two arcs.
+            (
+                "sphere",
+                &[("m", 1.0), ("d", 3.0), ("edge", 0.05)],
+                [[-0.5, 0.5], [-2.0, 2.0], [-1.0, 1.0]],
+                2,
+            ),
+            // A band of the sphere.
+            (
+                "sphere",
+                &[("edge", 0.1)],
+                [[-2.0, 2.0], [-2.0, 2.0], [-0.4, 0.5]],
+                1,
+            ),
+        ];
+        for (name, params, bbox, pieces) in cases {
+            let params: Vec<(String, f64)> =
+                params.iter().map(|(n, v)| (n.to_string(), *v)).collect();
+            let p = preset(name, &params).unwrap();
+            let tri = p.triangulation.build(p.dim()).unwrap();
+            let oracle = CpuOracle::new(&p.system);
+            let opts = TraceOptions {
+                bbox: Some(bbox.to_vec()),
+                ..TraceOptions::default()
+            };
+            let sample = exhaustive(&p.system, &tri, &oracle, &opts).unwrap();
+            assert_eq!(sample.stats.components, pieces, "{name} in {bbox:?}");
+            let ctx = context(&p.system, &tri, &oracle, &opts).unwrap();
+            assert_eq!(ctx.codec.words(), 1);
+            let mut s: Table<1> = Table::fixed();
+            for i in 0..sample.len() {
+                s.insert(sample.key(i)).unwrap();
+            }
+            for budget in [1 << 40, 1 << 16] {
+                let components = count_components(&ctx.codec, &s, budget).unwrap();
+                assert_eq!(components, pieces, "{name} in {bbox:?}, budget {budget}");
+            }
+        }
+    }
 }
