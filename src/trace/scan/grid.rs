@@ -12,7 +12,7 @@ use super::candidates::{sign_code, BASE};
 use super::device_values::bounded_sign_code;
 use super::MAX_SCAN_DIM;
 use crate::error::{Error, Result};
-use crate::trace::region::{in_box, lattice_bounds};
+use crate::trace::region::lattice_bounds;
 use crate::trace::TraceContext;
 use crate::triangulation::{Triangulation, MAX_DIM};
 
@@ -273,35 +273,16 @@ pub(crate) fn row_spans(
     n: &[usize],
 ) -> Vec<(usize, i64, u32)> {
     let d = tri.dim();
-    let mut zero = vec![0i32; d];
-    let mut origin = vec![0.0; d];
-    tri.vertex_coords(&zero, &mut origin);
-    zero[0] = 1;
-    let mut step = vec![0.0; d];
-    tri.vertex_coords(&zero, &mut step);
-    for (s, o) in step.iter_mut().zip(&origin) {
-        *s -= o;
-    }
+    let step = axis0_step(tri);
     // Per row, the u_0 interval where the vertex lies in the grown box.
     let span = |r: usize, x: &[f64]| -> Option<(usize, i64, u32)> {
-        let (mut t0, mut t1) = (lo[0] as f64, (hi[0] + 1) as f64);
-        for i in 0..d {
-            let [a, b] = near[i];
-            if step[i] == 0.0 {
-                if x[i] < a || x[i] > b {
-                    return None;
-                }
-            } else {
-                let (p, q) = ((a - x[i]) / step[i], (b - x[i]) / step[i]);
-                t0 = t0.max(p.min(q));
-                t1 = t1.min(p.max(q));
-            }
-        }
-        let (s, e) = (t0.ceil() as i64, t1.floor() as i64);
-        (e >= s).then(|| (r, s, (e - s + 1) as u32))
+        let (s, e) = axis0_span(x, &step, near, (lo[0], hi[0] + 1))?;
+        Some((r, s, (e - s + 1) as u32))
     };
     let walk = RowWalk::new(tri, tri.matrix(), lo, n, near);
     if d == 1 {
+        let mut origin = [0.0];
+        tri.vertex_coords(&[0], &mut origin);
         return span(0, &origin).into_iter().collect();
     }
     // The values of the top axis in parallel, each walked depth first: rows come out sorted
@@ -319,6 +300,79 @@ pub(crate) fn row_spans(
             out
         })
         .collect()
+}
+
+/// The step in R^d of one unit along lattice axis 0.
+fn axis0_step(tri: &Triangulation) -> Vec<f64> {
+    let d = tri.dim();
+    let mut v = vec![0i32; d];
+    let mut origin = vec![0.0; d];
+    tri.vertex_coords(&v, &mut origin);
+    v[0] = 1;
+    let mut step = vec![0.0; d];
+    tri.vertex_coords(&v, &mut step);
+    for (s, o) in step.iter_mut().zip(&origin) {
+        *s -= o;
+    }
+    step
+}
+
+/// The integers u_0 in `from..=to` with `x + u_0 step` in `bbox` (as an interval), if any.
+fn axis0_span(
+    x: &[f64],
+    step: &[f64],
+    bbox: &[[f64; 2]],
+    (from, to): (i64, i64),
+) -> Option<(i64, i64)> {
+    let (mut t0, mut t1) = (from as f64, to as f64);
+    for ((&[a, b], &xi), &si) in bbox.iter().zip(x).zip(step) {
+        if si == 0.0 {
+            if xi < a || xi > b {
+                return None;
+            }
+        } else {
+            let (p, q) = ((a - xi) / si, (b - xi) / si);
+            t0 = t0.max(p.min(q));
+            t1 = t1.min(p.max(q));
+        }
+    }
+    let (s, e) = (t0.ceil() as i64, t1.floor() as i64);
+    (e >= s).then_some((s, e))
+}
+
+/// Sets [`BASE`] on the vertices within `near` (the box grown by an edge): an interval of
+/// each row. `near` is padded against rounding: a few more cubes are scanned, none fewer.
+fn mark_bases(tri: &Triangulation, grid: &mut ScanGrid, near: &[[f64; 2]]) {
+    let d = grid.dim();
+    let scale = near
+        .iter()
+        .map(|[l, h]| l.abs().max(h.abs()))
+        .fold(tri.edge(), f64::max);
+    let pad = 1e-9 * scale;
+    let near: Vec<[f64; 2]> = near.iter().map(|[l, h]| [l - pad, h + pad]).collect();
+    let step = axis0_step(tri);
+    let mut codes = std::mem::take(&mut grid.codes);
+    let mut rows = Vec::with_capacity(grid.rows.len());
+    let mut rest = &mut codes[..];
+    for row in &grid.rows {
+        let (own, next) = rest.split_at_mut(row.len as usize);
+        rows.push((*row, own));
+        rest = next;
+    }
+    rows.into_par_iter().for_each(|(row, codes)| {
+        let mut v = [0i32; MAX_DIM];
+        grid.row_coords(row.id, &mut v[..d]);
+        v[0] = 0;
+        let mut x = [0.0; MAX_DIM];
+        tri.vertex_coords(&v[..d], &mut x[..d]);
+        let last = row.start + row.len as i64 - 1;
+        if let Some((s, e)) = axis0_span(&x[..d], &step, &near, (row.start, last)) {
+            for code in &mut codes[(s - row.start) as usize..=(e - row.start) as usize] {
+                *code |= BASE;
+            }
+        }
+    });
+    grid.codes = codes;
 }
 
 /// The depth-first walk over the rows that can hold vertices in a box: on each axis from d - 1
@@ -523,15 +577,6 @@ fn build_with(
                 grid.fill_coords(from..from + v.len() / d, v)
             });
         let values = &mut grid.values[start * k..end * k];
-        let base = |v: &[i32]| {
-            let mut x = [0.0f64; MAX_DIM];
-            ctx.tri.vertex_coords(v, &mut x[..d]);
-            if in_box(&near_base, &x[..d]) {
-                BASE
-            } else {
-                0
-            }
-        };
         if let Some(device) = device {
             pairs.resize(2 * (end - start) * k, 0.0);
             device.eval_certified(ctx.tri, &lattice, &mut pairs)?;
@@ -543,20 +588,19 @@ fn build_with(
                 .for_each(|((v, e), p)| (*v, *e) = (p[0], p[1]));
             grid.codes[start..end]
                 .par_iter_mut()
-                .zip(lattice.par_chunks(d))
                 .zip(values.par_chunks(k).zip(bounds.par_chunks(k)))
-                .for_each(|((code, v), (f, e))| *code = bounded_sign_code(f, e) | base(v));
+                .for_each(|(code, (f, e))| *code = bounded_sign_code(f, e));
         } else {
             ctx.oracle
                 .values()
                 .eval_vertices(ctx.tri, &lattice, values)?;
             grid.codes[start..end]
                 .par_iter_mut()
-                .zip(lattice.par_chunks(d))
                 .zip(values.par_chunks(k))
-                .for_each(|((code, v), f)| *code = sign_code(f) | base(v));
+                .for_each(|(code, f)| *code = sign_code(f));
         }
     }
+    mark_bases(ctx.tri, &mut grid, &near_base);
     Ok(grid)
 }
 
