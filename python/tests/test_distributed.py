@@ -127,21 +127,20 @@ def test_a_killed_worker_changes_nothing(client, tmp_path):
 
 
 def test_parts_on_disk_under_a_memory_limit_merge_to_the_whole(client, tmp_path):
-    spec, box, _ = CASES["torus"]
-    s, c = single("torus")
-    # A limit under what the whole box's scan needs: it stops early...
-    limit = 4 << 20
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        whole = preset(spec).scan(box, max_memory=limit)
-    assert not whole.complete
-    # ...while each of 8 shards fits, and their parts merge to the whole scan.
+    spec, box = dict(name="torus", edge=0.05), TORUS_BOX
+    s = preset(spec).scan(box)
+    c = s.complex()
+    # A limit under what the whole box's scan needs (its grid, about 5 MiB, is refused)...
+    limit = 2 << 20
+    with pytest.raises(ValueError, match="over the memory limit"):
+        preset(spec).scan(box, max_memory=limit)
+    # ...while each of 16 shards fits, and their parts merge to the whole scan.
     out = tmp_path / "parts"
-    r = distributed.scan(preset(spec), box, 8, client=client, out=out, max_memory=limit)
+    r = distributed.scan(preset(spec), box, 16, client=client, out=out, max_memory=limit)
     assert r.complex is None and r.keys is None
     files = sorted(os.listdir(out))
     assert files.count(distributed.MANIFEST) == 1
-    assert sum(f.startswith("part-") for f in files) == 8
+    assert sum(f.startswith("part-") for f in files) == 16
     assert r.topology["cells"] == c.topology["cells"]
     assert r.topology["euler_characteristic"] == c.topology["euler_characteristic"]
     merged = distributed.merge(out, tmp_path / "torus.ply")
