@@ -85,7 +85,7 @@ impl<'a, const W: usize> Found<'a, W> {
         (key, self.border.near(x))
     }
 
-    /// Adds hits.
+    /// Adds a hit.
     pub(super) fn push(&mut self, hit: Hit<W>) {
         self.hits.push(hit);
     }
@@ -353,34 +353,21 @@ pub(crate) fn count_components<const W: usize>(
     // One more bit per coordinate: a coface's base lies one step beyond its facets' at most.
     let bits = (codec.coord_bits() + 1).min(32);
     let cofaces = crate::triangulation::KeyCodec::new(d, l + 1, bits)?;
-    let join = Join {
-        codec,
-        cofaces: &cofaces,
-        n: s.len(),
-        key: &|i| s.key(i).as_slice(),
-        budget,
-    };
-    with_width!(cofaces.words(), join_cofaces(&join))
+    let key = |i: usize| s.key(i).as_slice();
+    with_width!(
+        cofaces.words(),
+        join_cofaces(codec, &cofaces, s.len(), &key, budget)
+    )
 }
 
-/// What [`join_cofaces`] reads.
-struct Join<'a> {
-    codec: &'a crate::triangulation::KeyCodec,
-    cofaces: &'a crate::triangulation::KeyCodec,
+/// [`count_components`] with coface keys of V words, for the `n` simplices `key(i)`.
+fn join_cofaces<'s, const V: usize>(
+    codec: &crate::triangulation::KeyCodec,
+    cofaces: &crate::triangulation::KeyCodec,
     n: usize,
-    key: &'a (dyn Fn(usize) -> &'a [u64] + Sync),
+    key: &(dyn Fn(usize) -> &'s [u64] + Sync),
     budget: u64,
-}
-
-/// [`count_components`] with coface keys of V words.
-fn join_cofaces<const V: usize>(join: &Join) -> Result<usize> {
-    let Join {
-        codec,
-        cofaces,
-        n,
-        key,
-        budget,
-    } = *join;
+) -> Result<usize> {
     let total: u64 = (0..n)
         .into_par_iter()
         .map(|i| codec.decode(key(i)).cofacet_count())
@@ -479,7 +466,7 @@ fn exhaustive_with<const W: usize>(ctx: TraceContext) -> Result<Sample> {
     let codec = ctx.codec;
     let scanned = scan::<W>(&ctx, bbox)?;
     // For the cofaces at once: what the grid held (it is gone), at least 256 MiB, at most a
-    // quarter of the memory left.
+    // quarter of the memory left, and never under 16 MiB.
     let room = ctx
         .max_memory
         .saturating_sub(crate::memory::in_use(scanned.table.memory_bytes()));
