@@ -1598,3 +1598,94 @@ fn a_stop_during_a_shader_compile_ends_the_wait_and_keeps_the_run() {
         Some(isomesh::trace::StopReason::Interrupted)
     );
 }
+
+/// The warnings of a run, as text.
+fn notes(m: &isomesh::Manifold) -> String {
+    m.warnings()
+        .iter()
+        .map(|w| w.to_string())
+        .collect::<Vec<_>>()
+        .join("\n")
+}
+
+#[test]
+fn auto_takes_the_gpu_only_where_the_calibration_measured_it_faster() {
+    use isomesh::gpu::calibration::{Calibration, Entry, Speedups};
+    use isomesh::{Backend, Mesher};
+    let Some(g) = gpu("auto_takes_the_gpu_only_where_the_calibration_measured_it_faster") else {
+        return;
+    };
+    let dir = std::env::temp_dir().join(format!("isomesh-auto-{}", std::process::id()));
+    let file = dir.join("calibration.toml");
+    let torus = Mesher::preset("torus", &[])
+        .unwrap()
+        .edge(0.1)
+        .bbox(vec![[-1.5, 1.5], [-1.5, 1.5], [-0.5, 0.5]])
+        .threads(2);
+    // As on a hardware adapter (the hook lets auto open this one), with this file.
+    let auto = torus
+        .clone()
+        .backend(Backend::Auto)
+        .auto_opens_software(true)
+        .calibration(Some(file.clone()));
+    let cpu_trace = torus.trace().unwrap();
+    let cpu_scan = torus.scan().unwrap();
+
+    // Nothing measured: the CPU, and the note says how to measure.
+    let t = auto.trace().unwrap();
+    assert_eq!(t.report().backend.backend, "cpu");
+    assert!(notes(&t).contains("isomesh bench"), "{}", notes(&t));
+
+    // Traces measured slower, scans faster with device values than without.
+    let mut c = Calibration::default();
+    c.record(Entry {
+        traces: Some(Speedups {
+            cases: 4,
+            gpu: 0.5,
+            device_values: None,
+        }),
+        scans: Some(Speedups {
+            cases: 2,
+            gpu: 1.5,
+            device_values: Some(2.0),
+        }),
+        ..Entry::new(&g.adapter, 2)
+    });
+    c.save(&file).unwrap();
+    let t = auto.trace().unwrap();
+    assert_eq!(t.report().backend.backend, "cpu");
+    assert!(notes(&t).contains("0.50x"), "{}", notes(&t));
+    assert_eq!(t.sample().sorted_keys(), cpu_trace.sample().sorted_keys());
+    let s = auto.scan().unwrap();
+    let r = s.report();
+    assert!(
+        r.backend.backend.starts_with("gpu"),
+        "{}",
+        r.backend.backend
+    );
+    assert!(
+        r.device_vertex_evaluations > 0,
+        "the scan took device values"
+    );
+    assert!(notes(&s).is_empty(), "{}", notes(&s));
+    assert_eq!(s.sample().sorted_keys(), cpu_scan.sample().sorted_keys());
+
+    // A file that is not a calibration: the CPU, and the note names the file.
+    std::fs::write(&file, "adapter = 1\n").unwrap();
+    let s = auto.scan().unwrap();
+    assert_eq!(s.report().backend.backend, "cpu");
+    assert!(notes(&s).contains("calibration file"), "{}", notes(&s));
+
+    // Without the hook auto never opens a software adapter, whatever the file says.
+    c.save(&file).unwrap();
+    if g.adapter.is_software() {
+        let s = torus
+            .clone()
+            .backend(Backend::Auto)
+            .calibration(Some(file.clone()))
+            .scan()
+            .unwrap();
+        assert_eq!(s.report().backend.backend, "cpu");
+    }
+    std::fs::remove_dir_all(&dir).unwrap();
+}

@@ -228,7 +228,8 @@ def scan(
     one). With `out` a directory, each shard writes its part there and nothing large comes
     back (see :func:`merge`). `halo` (default: 1.1 times the triangulation's edge) widens each
     shard's scan; `threads` per task defaults to the worker's thread count; `backend`
-    ("auto": a worker's hardware GPU if it has one, else its CPU; the result is the same),
+    ("auto": a worker's hardware GPU where `isomesh bench` measured it faster than its CPU,
+    else its CPU; the result is the same),
     `precision` and `max_memory` (bytes, per shard) are those of ``Problem.scan``.
     `progress` prints a progress line on stderr (Dask's dashboard shows the tasks too)."""
     if not isinstance(problem, Problem):

@@ -57,7 +57,8 @@ pub struct TraceArgs {
     #[arg(long, allow_hyphen_values = true, value_parser = parse_count::<usize>)]
     pub search: Option<usize>,
     /// Oracle backend [default: cpu]: gpu uses any adapter (software ones too); auto a
-    /// hardware GPU when there is one, else the CPU.
+    /// hardware GPU where `isomesh bench` measured it faster than the CPU for this job (its
+    /// calibration file, ISOMESH_CALIBRATION or the user's cache), else the CPU.
     #[arg(long, value_parser = backend_parser())]
     pub backend: Option<Backend>,
     /// GPU shader precision: f64 (needs SHADER_F64), f32 (a filter; crossings are computed

@@ -14,7 +14,9 @@ use isomesh::export::write_atomic;
 use super::text::{say, shown};
 use isomesh::export::safe::{check_target, FileId};
 use isomesh::expr::ImplicitFunction;
+use isomesh::gpu::calibration::{self, speedup, Calibration, Entry, Pick, Speedups};
 use isomesh::gpu::{Gpu, GpuOptions, GpuOracle, Precision};
+use isomesh::mesher::Job;
 use isomesh::trace::{CpuOracle, Oracle, TraceStats};
 use isomesh::{Error, Result};
 use serde_json::{json, Value};
@@ -212,6 +214,9 @@ fn run_in_pool(args: &BenchArgs, threads: usize) -> Result<()> {
     let trace_rows = trace_table(args, gpu.as_ref())?;
     let scan_rows = scan_table(args, gpu.as_ref())?;
     let (surface_rows, crossovers) = surface_table(args)?;
+    if let Some(g) = &gpu {
+        calibrate(g, threads, &trace_rows, &scan_rows);
+    }
 
     // Each file is written, or fails, on its own: a picture that cannot be drawn does not
     // cost the JSON.
@@ -462,6 +467,67 @@ fn trace_table(args: &BenchArgs, gpu: Option<&Gpu>) -> Result<Vec<Value>> {
         rows.push(row);
     }
     Ok(rows)
+}
+
+/// Records in the calibration file what the traces and scans measured on a hardware
+/// adapter, for `--backend auto` ([`calibration`]), and says where auto now runs each job.
+/// A file that cannot be written costs the bench nothing but a note.
+fn calibrate(g: &Gpu, threads: usize, traces: &[Value], scans: &[Value]) {
+    if g.adapter.is_software() {
+        return;
+    }
+    let pairs = |rows: &[Value], gpu: &str| -> Vec<(f64, f64)> {
+        rows.iter()
+            .filter_map(|r| Some((r["cpu_s"].as_f64()?, r[gpu].as_f64()?)))
+            .collect()
+    };
+    let speedups = |rows: &[Value], values: bool| {
+        let plain = pairs(rows, "gpu_s");
+        Some(Speedups {
+            cases: plain.len(),
+            gpu: speedup(&plain)?,
+            device_values: values
+                .then(|| speedup(&pairs(rows, "device_values_s")))
+                .flatten(),
+        })
+    };
+    let entry = Entry {
+        traces: speedups(traces, false),
+        scans: speedups(scans, true),
+        ..Entry::new(&g.adapter, threads)
+    };
+    if entry.traces.is_none() && entry.scans.is_none() {
+        return;
+    }
+    let Some(path) = calibration::default_path() else {
+        say!("\nnote: no cache directory to keep the calibration for --backend auto in (set ISOMESH_CALIBRATION)");
+        return;
+    };
+    let mut c = Calibration::load(&path).unwrap_or_default();
+    c.record(entry);
+    if let Err(e) = c.save(&path) {
+        say!("\nnote: the calibration for --backend auto was not saved: {e}");
+        return;
+    }
+    say!(
+        "\n--backend auto on {} (saved in {}):",
+        g.adapter.name,
+        path.display()
+    );
+    for job in [Job::Trace, Job::Scan] {
+        let name = if job == Job::Trace { "traces" } else { "scans" };
+        match c.pick(&g.adapter, job) {
+            Pick::Gpu { device_values } => say!(
+                "- {name}: the GPU{}",
+                if device_values {
+                    " with device values"
+                } else {
+                    ""
+                }
+            ),
+            Pick::Cpu(why) => say!("- {name}: the CPU ({why})"),
+        }
+    }
 }
 
 /// The share of a run's decisions the device made, as a percentage.

@@ -56,7 +56,8 @@ pub enum Backend {
     /// The GPU oracle on any adapter, software ones included (needs the `gpu` feature and f
     /// in the equation language).
     Gpu,
-    /// A hardware GPU when there is one and f is in the equation language, else the CPU.
+    /// A hardware GPU where `isomesh bench` measured it faster than the CPU for the job
+    /// ([`crate::gpu::calibration`]) and f is in the equation language, else the CPU.
     Auto,
 }
 
@@ -96,6 +97,10 @@ pub struct Mesher {
     device_values: bool,
     #[cfg(feature = "gpu")]
     level_slice: Option<usize>,
+    #[cfg(feature = "gpu")]
+    calibration: Option<std::path::PathBuf>,
+    #[cfg(feature = "gpu")]
+    auto_software: bool,
     threads: Option<usize>,
     max_memory: u64,
     cancel: Option<Arc<AtomicBool>>,
@@ -189,6 +194,10 @@ impl Mesher {
             device_values: false,
             #[cfg(feature = "gpu")]
             level_slice: None,
+            #[cfg(feature = "gpu")]
+            calibration: None,
+            #[cfg(feature = "gpu")]
+            auto_software: false,
             threads: None,
             max_memory: memory::default_limit(),
             cancel: None,
@@ -284,6 +293,22 @@ impl Mesher {
     #[cfg(feature = "gpu")]
     pub fn level_slice(mut self, simplices: Option<usize>) -> Self {
         self.level_slice = simplices;
+        self
+    }
+
+    /// [`Backend::Auto`]: the calibration file that says where the GPU is faster (default:
+    /// [`calibration::default_path`](crate::gpu::calibration::default_path), which
+    /// `isomesh bench` writes).
+    #[cfg(feature = "gpu")]
+    pub fn calibration(mut self, path: Option<std::path::PathBuf>) -> Self {
+        self.calibration = path;
+        self
+    }
+
+    #[doc(hidden)] // a test hook: auto as on a hardware GPU, on a software adapter
+    #[cfg(all(feature = "gpu", feature = "internals"))]
+    pub fn auto_opens_software(mut self, on: bool) -> Self {
+        self.auto_software = on;
         self
     }
 
@@ -475,7 +500,7 @@ impl Mesher {
         };
         let cpu = CpuOracle::new(f);
         #[cfg(feature = "gpu")]
-        let gpu = match self.gpu_oracle(&mut warnings) {
+        let gpu = match self.gpu_oracle(job, &mut warnings) {
             // Stopped while a shader compiled: the trace below stops at once on the raised
             // flag (keeping at most its seeds' simplices), marked interrupted, as on the CPU.
             Err(Error::Interrupted(_)) => None,
@@ -551,11 +576,22 @@ impl Mesher {
         })
     }
 
-    /// The GPU oracle the backend asks for, or `None` for the CPU.
+    /// The GPU oracle the backend asks for, or `None` for the CPU. Auto takes a hardware
+    /// GPU only where the calibration file says it was measured faster for `job`
+    /// ([`crate::gpu::calibration`]), with device values for a scan where those were
+    /// faster still.
     #[cfg(feature = "gpu")]
-    fn gpu_oracle(&self, warnings: &mut Vec<Warning>) -> Result<Option<crate::gpu::GpuOracle<'_>>> {
+    fn gpu_oracle(
+        &self,
+        job: Job,
+        warnings: &mut Vec<Warning>,
+    ) -> Result<Option<crate::gpu::GpuOracle<'_>>> {
+        use crate::gpu::calibration::{self, Calibration, Pick};
         use crate::gpu::{Gpu, GpuOptions, GpuOracle};
         let f = &*self.function;
+        let gpu_settings =
+            self.precision.is_some() || self.level_slice.is_some() || self.device_values;
+        let mut device_values = self.device_values;
         let gpu = match self.backend {
             Backend::Cpu => return Ok(None),
             Backend::Gpu => {
@@ -572,15 +608,28 @@ impl Mesher {
                 if f.system().is_none() {
                     return Ok(None);
                 }
-                match Gpu::open(false) {
+                let g = match Gpu::open(self.auto_software) {
                     Ok(g) => g,
                     Err(e) => {
                         warnings.push(Warning::NoGpu {
                             why: e.to_string(),
-                            gpu_settings: self.precision.is_some()
-                                || self.level_slice.is_some()
-                                || self.device_values,
+                            gpu_settings,
                         });
+                        return Ok(None);
+                    }
+                };
+                let file = self.calibration.clone().or_else(calibration::default_path);
+                let pick = match file.as_deref().map(Calibration::load).transpose() {
+                    Ok(c) => c.unwrap_or_default().pick(&g.adapter, job),
+                    Err(e) => Pick::Cpu(format!("auto: {e}")),
+                };
+                match pick {
+                    Pick::Gpu { device_values: v } => {
+                        device_values |= v;
+                        g
+                    }
+                    Pick::Cpu(why) => {
+                        warnings.push(Warning::NoGpu { why, gpu_settings });
                         return Ok(None);
                     }
                 }
@@ -589,7 +638,7 @@ impl Mesher {
         let options = GpuOptions {
             precision: self.precision,
             level_slice: self.level_slice.unwrap_or(0),
-            device_values: self.device_values,
+            device_values,
             cancel: self.cancel.clone(),
         };
         GpuOracle::with_options(gpu, f, options).map(Some)
