@@ -456,11 +456,21 @@ impl Triangulation {
     /// Ambient coordinates of the lattice vertex `v`, into `x` (length d).
     #[inline]
     pub fn vertex_coords(&self, v: &[i32], x: &mut [f64]) {
-        let mut u = [0.0f64; super::MAX_DIM];
-        for (ui, &vi) in u.iter_mut().zip(v) {
-            *ui = vi as f64;
+        // A buffer no larger than needed: zeroing MAX_DIM entries per vertex cost more than
+        // the map itself in low dimensions.
+        fn with<const N: usize>(t: &Triangulation, v: &[i32], x: &mut [f64]) {
+            let mut u = [0.0f64; N];
+            for (ui, &vi) in u.iter_mut().zip(&v[..t.d]) {
+                *ui = vi as f64;
+            }
+            t.point_from_lattice(&u[..t.d], x);
         }
-        self.point_from_lattice(&u[..self.d], x);
+        match self.d {
+            0..=4 => with::<4>(self, v, x),
+            5..=8 => with::<8>(self, v, x),
+            9..=16 => with::<16>(self, v, x),
+            _ => with::<{ super::MAX_DIM }>(self, v, x),
+        }
     }
 
     /// The point with barycentric coordinates `lambda` in the simplex whose lattice vertices

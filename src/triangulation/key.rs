@@ -57,22 +57,32 @@ impl KeyCodec {
                 s.ambient_dim()
             )));
         }
-        self.encode_vertex(s.base(), out)?;
-        let mut w = BitWriter {
-            out: &mut out[..self.words],
-            pos: self.d * self.coord_bits as usize,
-        };
-        if self.part_bits > 0 {
-            let mut index = [0u8; 64];
-            for (p, &mask) in s.parts().iter().enumerate() {
-                let mut m = mask;
-                while m != 0 {
-                    index[m.trailing_zeros() as usize] = p as u8;
-                    m &= m - 1;
-                }
-            }
-            for &p in &index[..self.d] {
+        self.encode_masks(s.base(), s.parts(), out)
+    }
+
+    /// [`KeyCodec::encode`] of the simplex with base `v0` and ordered partition `parts`
+    /// (masks of elements 0..=d, element d in the last part), given as they are, without
+    /// building the simplex: for callers that hold a valid partition already.
+    #[inline]
+    pub fn encode_masks(&self, v0: &[i32], parts: &[u64], out: &mut [u64]) -> Result<()> {
+        debug_assert_eq!(parts.len(), self.l + 1);
+        self.encode_vertex(v0, out)?;
+        // Element e's part index goes at bit base + e * part_bits; encode_vertex left those
+        // bits clear, so part 0 writes nothing and element d (always in the last part) is
+        // not written.
+        let base = self.d * self.coord_bits as usize;
+        let out = &mut out[..self.words];
+        let below_d = (1u64 << self.d) - 1;
+        for (p, &mask) in parts.iter().enumerate().skip(1) {
+            let mut m = mask & below_d;
+            while m != 0 {
+                let e = m.trailing_zeros() as usize;
+                let mut w = BitWriter {
+                    out: &mut *out,
+                    pos: base + e * self.part_bits as usize,
+                };
                 w.put(p as u64, self.part_bits);
+                m &= m - 1;
             }
         }
         Ok(())

@@ -321,9 +321,9 @@ pub(super) fn chain_key<const W: usize>(
         prev = s as u64;
     }
     parts[k] = (full & !prev) | (1 << d);
-    let simplex = Simplex::from_masks(v0, &parts[..=k])?;
+    debug_assert!(Simplex::from_masks(v0, &parts[..=k]).is_ok());
     let mut key = [0u64; W];
-    ctx.codec.encode(&simplex, &mut key)?;
+    ctx.codec.encode_masks(v0, &parts[..=k], &mut key)?;
     Ok(key)
 }
 
@@ -368,35 +368,56 @@ fn join_cofaces<'s, const V: usize>(
     key: &(dyn Fn(usize) -> &'s [u64] + Sync),
     budget: u64,
 ) -> Result<usize> {
+    // Simplices decode into a scratch per thread (a fresh simplex per key cost a clear and
+    // a copy of its full-size arrays).
     let total: u64 = (0..n)
         .into_par_iter()
-        .map(|i| codec.decode(key(i)).cofacet_count())
+        .map_init(
+            || codec.scratch(),
+            |s, i| {
+                codec.decode_into(key(i), s);
+                s.cofacet_count()
+            },
+        )
         .sum();
+    const CHUNK: usize = 4096;
     // Collected in pieces, then joined: twice the entries' bytes at the join.
     let entry = 2 * size_of::<([u64; V], u32)>() as u64;
     let passes = (total.saturating_mul(entry) / budget.max(1) + 1).min(u32::MAX as u64);
     let hasher = foldhash::fast::FixedState::default();
+    // Cofaces per simplex and pass, on average: a piece's first capacity.
+    let per_pass = (total / (n as u64).max(1) / passes + 1) as usize;
     let mut parent: Vec<u32> = (0..n as u32).collect();
     let mut components = n;
     for pass in 0..passes {
-        let mut pairs: Vec<([u64; V], u32)> = (0..n)
+        // A piece per chunk of simplices, then one parallel copy into place.
+        let pieces: Vec<Vec<([u64; V], u32)>> = (0..n.div_ceil(CHUNK))
             .into_par_iter()
-            .with_min_len(1024)
-            .flat_map_iter(|i| {
-                let mut out = Vec::new();
-                let mut coface = [0u64; V];
-                codec.decode(key(i)).for_each_cofacet(|tau| {
-                    // A coface past the coordinate range joins nothing (none of S is there).
-                    if cofaces.encode(tau, &mut coface).is_ok()
-                        && (passes == 1
-                            || std::hash::BuildHasher::hash_one(&hasher, coface) % passes == pass)
-                    {
-                        out.push((coface, i as u32));
+            .map_init(
+                || codec.scratch(),
+                |s, c| {
+                    let range = c * CHUNK..((c + 1) * CHUNK).min(n);
+                    let mut out = Vec::with_capacity(range.len() * per_pass);
+                    let mut coface = [0u64; V];
+                    for i in range {
+                        codec.decode_into(key(i), s);
+                        s.for_each_cofacet(|tau| {
+                            // A coface past the coordinate range joins nothing (none of S
+                            // is there).
+                            if cofaces.encode(tau, &mut coface).is_ok()
+                                && (passes == 1
+                                    || std::hash::BuildHasher::hash_one(&hasher, coface) % passes
+                                        == pass)
+                            {
+                                out.push((coface, i as u32));
+                            }
+                        });
                     }
-                });
-                out
-            })
+                    out
+                },
+            )
             .collect();
+        let mut pairs: Vec<([u64; V], u32)> = pieces.into_par_iter().flatten().collect();
         pairs.par_sort_unstable();
         for run in pairs.chunk_by(|a, b| a.0 == b.0) {
             for &(_, j) in &run[1..] {
