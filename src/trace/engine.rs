@@ -316,12 +316,14 @@ impl<'a, const W: usize> Engine<'a, W> {
             .map(|(cs, rows)| -> Result<Vec<Key<W>>> {
                 let mut miss = Vec::new();
                 let mut vk = [0u64; W];
+                let mut s = codec.scratch();
                 for (c, row) in cs.iter().zip(rows.chunks_exact_mut(n)) {
                     if only_missing && !row.contains(&MISSING) {
                         continue;
                     }
                     let mut err = None;
-                    codec.decode(c).for_each_vertex(|i, v| {
+                    codec.decode_into(c, &mut s);
+                    s.for_each_vertex(|i, v| {
                         if let Err(e) = codec.encode_vertex(v, &mut vk) {
                             err = Some(e);
                             return;
@@ -351,9 +353,16 @@ impl<'a, const W: usize> Engine<'a, W> {
         self.decide_rows(&idx)
     }
 
-    /// The crossing point of candidate `key` with barycentric coordinates `lambda`.
-    pub fn point(&self, key: &Key<W>, lambda: &[f64], out: &mut [f64]) {
-        let s = self.ctx.codec.decode(key);
+    /// The crossing point of candidate `key` with barycentric coordinates `lambda`; `s` is
+    /// scratch (from the codec's [`scratch`](crate::triangulation::KeyCodec::scratch)).
+    pub fn point(
+        &self,
+        key: &Key<W>,
+        lambda: &[f64],
+        s: &mut crate::triangulation::Simplex,
+        out: &mut [f64],
+    ) {
+        self.ctx.codec.decode_into(key, s);
         self.ctx
             .tri
             .barycentric_point(lambda, |i, v| s.vertex_into(i, v), out);
@@ -368,10 +377,10 @@ impl<'a, const W: usize> Engine<'a, W> {
             .filter(|&i| v.status[i].crossed())
             .collect();
         let mut points = vec![0.0; crossed.len() * d];
-        points
-            .par_chunks_mut(d)
-            .zip(&crossed)
-            .for_each(|(p, &i)| self.point(&cands[i], &v.lambda[i * n..(i + 1) * n], p));
+        points.par_chunks_mut(d).zip(&crossed).for_each_init(
+            || self.ctx.codec.scratch(),
+            |s, (p, &i)| self.point(&cands[i], &v.lambda[i * n..(i + 1) * n], s, p),
+        );
         (crossed, points)
     }
 

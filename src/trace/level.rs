@@ -612,8 +612,9 @@ impl<const W: usize> Engine<'_, W> {
         let len = if with_points { hits.len() } else { 0 };
         let parts = par_ranges(len, POINT_CHUNK, |r| {
             let mut out = vec![0.0; r.len() * d];
+            let mut s = self.ctx.codec.scratch();
             for (o, h) in out.chunks_exact_mut(d).zip(&hits[r]) {
-                self.point(&h.0, h.2, o);
+                self.point(&h.0, h.2, &mut s, o);
             }
             out
         });
