@@ -14,7 +14,7 @@ use isomesh::export::write_atomic;
 use super::text::{say, shown};
 use isomesh::export::safe::{check_target, FileId};
 use isomesh::expr::ImplicitFunction;
-use isomesh::gpu::calibration::{self, speedup, Calibration, Entry, Pick, Speedups};
+use isomesh::gpu::calibration::{self, Calibration, Entry, Pick};
 use isomesh::gpu::{Gpu, GpuOptions, GpuOracle, Precision};
 use isomesh::mesher::Job;
 use isomesh::trace::{CpuOracle, Oracle, TraceStats};
@@ -473,32 +473,9 @@ fn trace_table(args: &BenchArgs, gpu: Option<&Gpu>) -> Result<Vec<Value>> {
 /// adapter, for `--backend auto` ([`calibration`]), and says where auto now runs each job.
 /// A file that cannot be written costs the bench nothing but a note.
 fn calibrate(g: &Gpu, threads: usize, traces: &[Value], scans: &[Value]) {
-    if g.adapter.is_software() {
+    let Some(entry) = Entry::from_bench(&g.adapter, threads, traces, scans) else {
         return;
-    }
-    let pairs = |rows: &[Value], gpu: &str| -> Vec<(f64, f64)> {
-        rows.iter()
-            .filter_map(|r| Some((r["cpu_s"].as_f64()?, r[gpu].as_f64()?)))
-            .collect()
     };
-    let speedups = |rows: &[Value], values: bool| {
-        let plain = pairs(rows, "gpu_s");
-        Some(Speedups {
-            cases: plain.len(),
-            gpu: speedup(&plain)?,
-            device_values: values
-                .then(|| speedup(&pairs(rows, "device_values_s")))
-                .flatten(),
-        })
-    };
-    let entry = Entry {
-        traces: speedups(traces, false),
-        scans: speedups(scans, true),
-        ..Entry::new(&g.adapter, threads)
-    };
-    if entry.traces.is_none() && entry.scans.is_none() {
-        return;
-    }
     let Some(path) = calibration::default_path() else {
         say!("\nnote: no cache directory to keep the calibration for --backend auto in (set ISOMESH_CALIBRATION)");
         return;

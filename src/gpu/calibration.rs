@@ -77,6 +77,42 @@ impl Entry {
         }
     }
 
+    /// The entry for what `isomesh bench` measured on a hardware `adapter`: its trace and
+    /// scan rows (`cpu_s` against `gpu_s`, and `device_values_s` for scans; rows without a
+    /// GPU time are left out). `None` for a software adapter, or when nothing was measured
+    /// on the GPU.
+    pub fn from_bench(
+        adapter: &AdapterSummary,
+        cpu_threads: usize,
+        traces: &[serde_json::Value],
+        scans: &[serde_json::Value],
+    ) -> Option<Self> {
+        if adapter.is_software() {
+            return None;
+        }
+        let pairs = |rows: &[serde_json::Value], gpu: &str| -> Vec<(f64, f64)> {
+            rows.iter()
+                .filter_map(|r| Some((r["cpu_s"].as_f64()?, r[gpu].as_f64()?)))
+                .collect()
+        };
+        let speedups = |rows: &[serde_json::Value], values: bool| {
+            let plain = pairs(rows, "gpu_s");
+            Some(Speedups {
+                cases: plain.len(),
+                gpu: speedup(&plain)?,
+                device_values: values
+                    .then(|| speedup(&pairs(rows, "device_values_s")))
+                    .flatten(),
+            })
+        };
+        let entry = Entry {
+            traces: speedups(traces, false),
+            scans: speedups(scans, true),
+            ..Entry::new(adapter, cpu_threads)
+        };
+        (entry.traces.is_some() || entry.scans.is_some()).then_some(entry)
+    }
+
     fn is_for(&self, adapter: &AdapterSummary) -> bool {
         self.adapter == adapter.name
             && self.driver == adapter.driver
@@ -290,6 +326,35 @@ mod tests {
         assert!(matches!(c.pick(&h, Job::Trace), Pick::Gpu { .. }));
         c.entries[0].isomesh = "0.0.1".into();
         assert!(matches!(c.pick(&h, Job::Trace), Pick::Cpu(_)));
+    }
+
+    #[test]
+    fn the_bench_rows_make_an_entry_for_hardware_adapters_only() {
+        use serde_json::json;
+        let h = adapter("H200");
+        let traces = [
+            json!({"cpu_s": 1.0, "gpu_s": 2.0}),
+            json!({"cpu_s": 1.0, "gpu_s": 0.5}),
+            json!({"cpu_s": 4.0, "gpu_s": 1.0}),
+        ];
+        let scans = [json!({"cpu_s": 3.0, "gpu_s": 1.0, "device_values_s": 0.5})];
+        let e = Entry::from_bench(&h, 16, &traces, &scans).unwrap();
+        let t = e.traces.unwrap();
+        assert_eq!(t.cases, 3);
+        assert!((t.gpu - 2f64.powf(2.0 / 3.0)).abs() < 1e-12, "{}", t.gpu);
+        assert_eq!(t.device_values, None);
+        let s = e.scans.unwrap();
+        assert_eq!(s.cases, 1);
+        assert!((s.gpu - 3.0).abs() < 1e-12 && (s.device_values.unwrap() - 6.0).abs() < 1e-12);
+        assert_eq!(e.cpu_threads, 16);
+        // CPU-only rows (no GPU time) measure nothing.
+        let cpu_only = [json!({"cpu_s": 1.0})];
+        let e = Entry::from_bench(&h, 2, &cpu_only, &scans).unwrap();
+        assert!(e.traces.is_none() && e.scans.is_some());
+        assert!(Entry::from_bench(&h, 2, &cpu_only, &[]).is_none());
+        let mut lavapipe = adapter("llvmpipe");
+        lavapipe.device_type = "Cpu".into();
+        assert!(Entry::from_bench(&lavapipe, 2, &traces, &scans).is_none());
     }
 
     #[test]
