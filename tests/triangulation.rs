@@ -675,3 +675,39 @@ fn bad_input_gets_typed_errors() {
         Err(Error::InvalidSimplex(_))
     ));
 }
+
+#[test]
+fn vertex_coordinates_in_batches_are_those_of_one_vertex_at_a_time_bit_for_bit() {
+    let mut rng = ChaCha8Rng::seed_from_u64(17);
+    for d in 1..=10 {
+        for kind in [TriangulationKind::Coxeter, TriangulationKind::Freudenthal] {
+            for rotation in [None, Some(3)] {
+                let mut b = Triangulation::builder(d, kind).edge(0.0173).offset_seed(5);
+                if let Some(seed) = rotation {
+                    b = b.rotation_seed(seed);
+                }
+                let t = b.build().unwrap();
+                // Zeros (signed zeros in the products), small and large coordinates.
+                let lattice: Vec<i32> = (0..200 * d)
+                    .map(|i| match i % 5 {
+                        0 => 0,
+                        1 => rng.random_range(-3..=3),
+                        _ => rng.random_range(-(1 << 20)..=(1 << 20)),
+                    })
+                    .collect();
+                let mut batch = vec![f64::NAN; lattice.len()];
+                t.vertices_coords(&lattice, &mut batch);
+                for (v, x) in lattice.chunks_exact(d).zip(batch.chunks_exact(d)) {
+                    let mut one = vec![0.0; d];
+                    t.vertex_coords(v, &mut one);
+                    let bits = |p: &[f64]| p.iter().map(|c| c.to_bits()).collect::<Vec<_>>();
+                    assert_eq!(
+                        bits(x),
+                        bits(&one),
+                        "d {d}, {kind:?}, rotation {rotation:?}"
+                    );
+                }
+            }
+        }
+    }
+}

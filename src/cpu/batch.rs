@@ -36,9 +36,7 @@ pub fn eval_vertices(
         x.par_chunks_mut(CHUNK * d)
             .zip(lattice.par_chunks(CHUNK * d))
             .for_each(|(p, lat)| {
-                for (v, p) in lat.chunks_exact(d).zip(p.chunks_exact_mut(d)) {
-                    tri.vertex_coords(v, p);
-                }
+                tri.vertices_coords(lat, p);
             });
         for (p, out) in x
             .chunks(SERIAL_BATCH * d)
@@ -54,9 +52,7 @@ pub fn eval_vertices(
         .zip(values.par_chunks_mut(chunk * k))
         .for_each_init(Vec::new, |x, (lat, out)| {
             x.resize(lat.len(), 0.0);
-            for (v, p) in lat.chunks_exact(d).zip(x.chunks_exact_mut(d)) {
-                tri.vertex_coords(v, p);
-            }
+            tri.vertices_coords(lat, x);
             f.eval_batch(x, out);
         });
 }

@@ -473,6 +473,41 @@ impl Triangulation {
         }
     }
 
+    /// [`Triangulation::vertex_coords`] of many vertices: `lattice` holds rows of d, `x` gets
+    /// rows of d, bit for bit the same. With a dense map in up to 8 dimensions each row is
+    /// one unrolled pass, its d sums independent of one another (the same operations in the
+    /// same order as the dense product's, which starts each sum at -0.0: a no-op).
+    pub fn vertices_coords(&self, lattice: &[i32], x: &mut [f64]) {
+        fn dense<const D: usize>(a: &[f64], b: &[f64], lattice: &[i32], x: &mut [f64]) {
+            let a: &[f64; 64] = &std::array::from_fn(|i| a.get(i).copied().unwrap_or(0.0));
+            for (v, out) in lattice.chunks_exact(D).zip(x.chunks_exact_mut(D)) {
+                let u: [f64; D] = std::array::from_fn(|j| v[j] as f64);
+                for r in 0..D {
+                    let mut acc = a[r * D] * u[0];
+                    for j in 1..D {
+                        acc += a[r * D + j] * u[j];
+                    }
+                    out[r] = acc + b[r];
+                }
+            }
+        }
+        let d = self.d;
+        match (&self.linear, d) {
+            (Linear::Dense { a, .. }, 2) => dense::<2>(a, &self.offset, lattice, x),
+            (Linear::Dense { a, .. }, 3) => dense::<3>(a, &self.offset, lattice, x),
+            (Linear::Dense { a, .. }, 4) => dense::<4>(a, &self.offset, lattice, x),
+            (Linear::Dense { a, .. }, 5) => dense::<5>(a, &self.offset, lattice, x),
+            (Linear::Dense { a, .. }, 6) => dense::<6>(a, &self.offset, lattice, x),
+            (Linear::Dense { a, .. }, 7) => dense::<7>(a, &self.offset, lattice, x),
+            (Linear::Dense { a, .. }, 8) => dense::<8>(a, &self.offset, lattice, x),
+            _ => {
+                for (v, out) in lattice.chunks_exact(d).zip(x.chunks_exact_mut(d)) {
+                    self.vertex_coords(v, out);
+                }
+            }
+        }
+    }
+
     /// The point with barycentric coordinates `lambda` in the simplex whose lattice vertices
     /// `vertex(i, out)` writes: u = v_0 + sum_i lambda_i (v_i - v_0) (exact integer
     /// differences), then x = b + A u.
