@@ -480,7 +480,10 @@ fn calibrate(g: &Gpu, threads: usize, traces: &[Value], scans: &[Value]) {
         say!("\nnote: no cache directory to keep the calibration for --backend auto in (set ISOMESH_CALIBRATION)");
         return;
     };
-    let mut c = Calibration::load(&path).unwrap_or_default();
+    let mut c = Calibration::load(&path).unwrap_or_else(|e| {
+        say!("\nnote: {e}; it is replaced");
+        Calibration::default()
+    });
     c.record(entry);
     if let Err(e) = c.save(&path) {
         say!("\nnote: the calibration for --backend auto was not saved: {e}");

@@ -62,9 +62,10 @@ impl KeyCodec {
 
     /// [`KeyCodec::encode`] of the simplex with base `v0` and ordered partition `parts`
     /// (masks of elements 0..=d, element d in the last part), given as they are, without
-    /// building the simplex: for callers that hold a valid partition already.
+    /// building the simplex: for the crate's callers that hold a valid partition already
+    /// (nothing is checked but the coordinates' range).
     #[inline]
-    pub fn encode_masks(&self, v0: &[i32], parts: &[u64], out: &mut [u64]) -> Result<()> {
+    pub(crate) fn encode_masks(&self, v0: &[i32], parts: &[u64], out: &mut [u64]) -> Result<()> {
         debug_assert_eq!(parts.len(), self.l + 1);
         self.encode_vertex(v0, out)?;
         // Element e's part index goes at bit base + e * part_bits; encode_vertex left those
