@@ -220,6 +220,13 @@ impl<'a, const W: usize> Engine<'a, W> {
     pub(super) fn add_vertices(&mut self, keys: &mut Vec<Key<W>>) -> Result<()> {
         sort(keys);
         keys.dedup();
+        self.add_sorted_vertices(keys)
+    }
+
+    /// Evaluates f at the lattice vertices `keys` (sorted, distinct and not cached yet)
+    /// and caches the values, in that order.
+    pub(super) fn add_sorted_vertices(&mut self, keys: &[Key<W>]) -> Result<()> {
+        debug_assert!(keys.windows(2).all(|w| w[0] < w[1]));
         let (d, k) = (self.ctx.d, self.ctx.k);
         let mut lattice = vec![0i32; keys.len() * d];
         lattice

@@ -9,8 +9,6 @@
 
 use std::ops::Range;
 
-use rayon::prelude::*;
-
 use super::engine::Engine;
 use super::frontier::{par_ranges, sort, sort_runs, Back, Found, Frontier, Verdicts};
 use super::table::Key;
@@ -106,12 +104,6 @@ struct Decided<const W: usize> {
 impl<const W: usize> Decided<W> {
     fn index(&self, key: &Key<W>) -> Option<usize> {
         self.keys.binary_search(key).ok()
-    }
-
-    /// Whether `key` is among these and crossed.
-    fn crossed(&self, key: &Key<W>) -> bool {
-        self.index(key)
-            .is_some_and(|i| self.verdicts.status[i].crossed())
     }
 }
 
@@ -310,11 +302,19 @@ impl<const W: usize> Engine<'_, W> {
         };
 
         // Round 2: every facet of the cofacets whose named facet the oracle rejected.
-        let mut retry: Vec<(u32, u32, u32)> = named
-            .iter()
-            .filter(|c| !c.fallback && !first.crossed(&c.key))
-            .map(|c| (c.from, c.via, c.apex))
-            .collect();
+        // `first` holds the distinct keys of the sorted `named`, in order: key j of `first`
+        // is the j-th run of equal keys there.
+        let mut retry: Vec<(u32, u32, u32)> = Vec::new();
+        let mut j = 0;
+        for (i, c) in named.iter().enumerate() {
+            if i > 0 && named[i - 1].key != c.key {
+                j += 1;
+            }
+            debug_assert!(first.keys[j] == c.key);
+            if !c.fallback && !first.verdicts.status[j].crossed() {
+                retry.push((c.from, c.via, c.apex));
+            }
+        }
         retry.sort_unstable();
         retry.dedup();
         self.stats.pivot_fallbacks += retry.len() as u64;
@@ -499,21 +499,32 @@ impl<const W: usize> Engine<'_, W> {
             return Ok(());
         }
         let deferred = std::mem::take(&mut named.deferred);
-        let mut keys: Vec<Key<W>> = deferred.iter().map(|t| t.vertex).collect();
-        sort(&mut keys);
-        keys.dedup();
+        // The distinct new vertices in key order, cached in that order: each deferred
+        // cofacet's new vertex gets the cache index its rank gives, with no lookup.
+        let mut by_vertex: Vec<(Key<W>, u32)> = deferred
+            .iter()
+            .enumerate()
+            .map(|(i, t)| (t.vertex, i as u32))
+            .collect();
+        sort(&mut by_vertex);
+        let start = self.verts.len();
+        let mut keys: Vec<Key<W>> = Vec::with_capacity(by_vertex.len());
+        let mut apex = vec![0u32; deferred.len()];
+        for (i, (v, t)) in by_vertex.iter().enumerate() {
+            if i == 0 || by_vertex[i - 1].0 != *v {
+                keys.push(*v);
+            }
+            apex[*t as usize] = (start + keys.len() - 1) as u32;
+        }
+        drop(by_vertex);
         // In pieces, between which a stop is heeded (the caller then drops the slice).
         for piece in keys.chunks(VERTEX_PIECE) {
             if self.ctx.interrupted() {
                 return Ok(());
             }
-            self.add_vertices(&mut piece.to_vec())?;
+            self.add_sorted_vertices(piece)?;
         }
-        let with_apex: Vec<(Deferred<W>, u32)> = deferred
-            .par_iter()
-            .with_min_len(POINT_CHUNK)
-            .map(|t| (*t, self.verts.find(&t.vertex).expect("just added") as u32))
-            .collect();
+        let with_apex: Vec<(Deferred<W>, u32)> = deferred.into_iter().zip(apex).collect();
         let starts: Vec<usize> = (0..with_apex.len())
             .filter(|&i| i == 0 || with_apex[i - 1].0.from != with_apex[i].0.from)
             .collect();
@@ -608,7 +619,10 @@ impl<const W: usize> Engine<'_, W> {
                     })
             })
             .collect();
-        hits.sort_unstable_by_key(|h| h.0);
+        // One round's keys are in order already.
+        if R > 1 {
+            hits.sort_unstable_by_key(|h| h.0);
+        }
         let len = if with_points { hits.len() } else { 0 };
         let parts = par_ranges(len, POINT_CHUNK, |r| {
             let mut out = vec![0.0; r.len() * d];
