@@ -233,7 +233,7 @@ impl<'a, const W: usize> Engine<'a, W> {
             .par_chunks_exact_mut(d)
             .zip(keys.par_iter())
             .with_min_len(CHUNK)
-            .for_each(|(v, key)| self.ctx.codec.decode_vertex(key, v));
+            .for_each(|(v, key)| self.ctx.codec.decode_vertex_w(key, v));
         let mut vals = vec![0.0; keys.len() * k];
         self.ctx
             .oracle
@@ -329,9 +329,9 @@ impl<'a, const W: usize> Engine<'a, W> {
                         continue;
                     }
                     let mut err = None;
-                    codec.decode_into(c, &mut s);
+                    codec.decode_into_w(c, &mut s);
                     s.for_each_vertex(|i, v| {
-                        if let Err(e) = codec.encode_vertex(v, &mut vk) {
+                        if let Err(e) = codec.encode_vertex_w(v, &mut vk) {
                             err = Some(e);
                             return;
                         }
@@ -369,7 +369,7 @@ impl<'a, const W: usize> Engine<'a, W> {
         s: &mut crate::triangulation::Simplex,
         out: &mut [f64],
     ) {
-        self.ctx.codec.decode_into(key, s);
+        self.ctx.codec.decode_into_w(key, s);
         self.ctx
             .tri
             .barycentric_point(lambda, |i, v| s.vertex_into(i, v), out);

@@ -158,11 +158,11 @@ impl<'e, 'a, const W: usize> Namer<'e, 'a, W> {
         let (d, k) = (e.ctx.d, e.ctx.k);
         e.ctx
             .codec
-            .decode_into(e.s.key(self.frontier.members.get(i)), &mut self.sigma);
+            .decode_into_w(e.s.key(self.frontier.members.get(i)), &mut self.sigma);
         let back = self.frontier.back.of(i);
         self.work.skip.resize(back.len() * d, 0);
         for (&b, v) in back.iter().zip(self.work.skip.chunks_exact_mut(d)) {
-            e.ctx.codec.decode_vertex(e.verts.key(b as usize), v);
+            e.ctx.codec.decode_vertex_w(e.verts.key(b as usize), v);
         }
         let row = &self.frontier.rows[i * (k + 1)..(i + 1) * (k + 1)];
         let values = &e.values;
@@ -233,7 +233,7 @@ impl<const W: usize> Work<'_, '_, W> {
                 {
                     return Ok(());
                 }
-                e.ctx.codec.encode_vertex(&self.v[..d], &mut self.key)?;
+                e.ctx.codec.encode_vertex_w(&self.v[..d], &mut self.key)?;
                 match e.verts.find(&self.key) {
                     Some(a) => a as u32,
                     None => {
@@ -268,7 +268,7 @@ impl<const W: usize> Work<'_, '_, W> {
         // Vertex r of sigma sits at r in tau before the new vertex, at r + 1 after it.
         let q = if r < p { r } else { r + 1 };
         tau.facet_into(q, &mut self.facet);
-        e.ctx.codec.encode(&self.facet, &mut self.key)?;
+        e.ctx.codec.encode_w(&self.facet, &mut self.key)?;
         if e.is_new(&self.key) {
             self.out.cands.push(Candidate {
                 key: self.key,
@@ -569,7 +569,7 @@ impl<const W: usize> Engine<'_, W> {
         let mut key = [0u64; W];
         for q in (0..=tau.dim()).filter(|&q| q != apex.0) {
             tau.facet_into(q, &mut facet);
-            self.ctx.codec.encode(&facet, &mut key)?;
+            self.ctx.codec.encode_w(&facet, &mut key)?;
             if self.is_new(&key) && skip.is_none_or(|s| s.index(&key).is_none()) {
                 out.push(Candidate {
                     key,

@@ -48,15 +48,7 @@ impl KeyCodec {
     /// Packs `s` into `out[..words()]`; fails if a coordinate does not fit `coord_bits`.
     #[inline]
     pub fn encode(&self, s: &Simplex, out: &mut [u64]) -> Result<()> {
-        if s.ambient_dim() != self.d || s.dim() != self.l {
-            return Err(Error::InvalidSimplex(format!(
-                "codec for {}-simplices of R^{}, got a {}-simplex of R^{}",
-                self.l,
-                self.d,
-                s.dim(),
-                s.ambient_dim()
-            )));
-        }
+        self.check_simplex(s)?;
         self.encode_masks(s.base(), s.parts(), out)
     }
 
@@ -187,6 +179,159 @@ impl KeyCodec {
         for c in out.iter_mut().take(self.d) {
             *c = (r.get(self.coord_bits) as i64 - bias) as i32;
         }
+    }
+
+    // Keys of a width known at compile time (the tracing loop's): those of one or two words
+    // are packed and unpacked in one 128-bit integer, bit for bit the layout above; wider
+    // ones take the general path.
+
+    /// [`KeyCodec::encode`] into a key of `W` words (`W` = [`KeyCodec::words`]).
+    #[inline]
+    pub(crate) fn encode_w<const W: usize>(&self, s: &Simplex, out: &mut [u64; W]) -> Result<()> {
+        if W > 2 {
+            return self.encode(s, out);
+        }
+        self.check_simplex(s)?;
+        self.encode_masks_w(s.base(), s.parts(), out)
+    }
+
+    /// [`KeyCodec::encode_masks`] into a key of `W` words (`W` = [`KeyCodec::words`]).
+    #[inline]
+    pub(crate) fn encode_masks_w<const W: usize>(
+        &self,
+        v0: &[i32],
+        parts: &[u64],
+        out: &mut [u64; W],
+    ) -> Result<()> {
+        if W > 2 {
+            return self.encode_masks(v0, parts, out);
+        }
+        debug_assert_eq!((parts.len(), self.words), (self.l + 1, W));
+        let mut acc = self.pack_vertex(v0)?;
+        let base = self.d as u32 * self.coord_bits;
+        let below_d = (1u64 << self.d) - 1;
+        for (p, &mask) in parts.iter().enumerate().skip(1) {
+            let mut m = mask & below_d;
+            while m != 0 {
+                acc |= (p as u128) << (base + m.trailing_zeros() * self.part_bits);
+                m &= m - 1;
+            }
+        }
+        *out = split_words(acc);
+        Ok(())
+    }
+
+    /// [`KeyCodec::encode_vertex`] into a key of `W` words (`W` = [`KeyCodec::words`]).
+    #[inline]
+    pub(crate) fn encode_vertex_w<const W: usize>(
+        &self,
+        v: &[i32],
+        out: &mut [u64; W],
+    ) -> Result<()> {
+        if W > 2 {
+            return self.encode_vertex(v, out);
+        }
+        debug_assert_eq!(self.words, W);
+        *out = split_words(self.pack_vertex(v)?);
+        Ok(())
+    }
+
+    /// [`KeyCodec::decode_into`] of a key of `W` words (`W` = [`KeyCodec::words`]).
+    #[inline]
+    pub(crate) fn decode_into_w<const W: usize>(&self, key: &[u64; W], out: &mut Simplex) {
+        if W > 2 {
+            return self.decode_into(key, out);
+        }
+        let acc = join_words(key);
+        let (bits, pbits) = (self.coord_bits, self.part_bits);
+        let (v0, parts) = out.reset(self.d, self.l + 1);
+        unpack_vertex(acc, bits, v0);
+        parts.fill(0);
+        parts[self.l] |= 1 << self.d;
+        if pbits == 0 {
+            parts[0] |= (1 << self.d) - 1;
+            return;
+        }
+        let (base, low) = (self.d as u32 * bits, (1u64 << pbits) - 1);
+        for e in 0..self.d {
+            let p = ((acc >> (base + e as u32 * pbits)) as u64 & low) as usize;
+            parts[p] |= 1 << e;
+        }
+    }
+
+    /// [`KeyCodec::decode_vertex`] of a key of `W` words (`W` = [`KeyCodec::words`]).
+    #[inline]
+    pub(crate) fn decode_vertex_w<const W: usize>(&self, key: &[u64; W], out: &mut [i32]) {
+        if W > 2 {
+            return self.decode_vertex(key, out);
+        }
+        unpack_vertex(join_words(key), self.coord_bits, &mut out[..self.d]);
+    }
+
+    /// The base-vertex field of a key of at most 128 bits, or the overflow error.
+    #[inline]
+    fn pack_vertex(&self, v: &[i32]) -> Result<u128> {
+        let bits = self.coord_bits;
+        let bias = 1i64 << (bits - 1);
+        let low = (1u64 << bits) - 1;
+        // One test for all coordinates, as in `encode_vertex`.
+        let (mut acc, mut spill, mut pos) = (0u128, 0u64, 0u32);
+        for &c in &v[..self.d] {
+            let x = (c as i64 + bias) as u64;
+            spill |= x >> bits;
+            acc |= u128::from(x & low) << pos;
+            pos += bits;
+        }
+        if spill != 0 {
+            // The general path finds the coordinate and builds the error.
+            let mut scratch = [0u64; 2];
+            self.encode_vertex(v, &mut scratch)?;
+        }
+        Ok(acc)
+    }
+
+    /// The error for a simplex of another dimension than the codec's.
+    #[inline]
+    fn check_simplex(&self, s: &Simplex) -> Result<()> {
+        if s.ambient_dim() != self.d || s.dim() != self.l {
+            return Err(Error::InvalidSimplex(format!(
+                "codec for {}-simplices of R^{}, got a {}-simplex of R^{}",
+                self.l,
+                self.d,
+                s.dim(),
+                s.ambient_dim()
+            )));
+        }
+        Ok(())
+    }
+}
+
+/// The low `W` (at most two) words of `acc`, the first word least significant.
+#[inline]
+fn split_words<const W: usize>(acc: u128) -> [u64; W] {
+    let mut out = [0u64; W];
+    for (i, o) in out.iter_mut().enumerate().take(2) {
+        *o = (acc >> (64 * i)) as u64;
+    }
+    out
+}
+
+/// The first (at most two) words of `key` as one integer, the first least significant.
+#[inline]
+fn join_words<const W: usize>(key: &[u64; W]) -> u128 {
+    key.iter()
+        .take(2)
+        .enumerate()
+        .fold(0, |a, (i, &w)| a | u128::from(w) << (64 * i))
+}
+
+/// The base coordinates (`out.len()` of them, `bits` each, biased) of a packed key.
+#[inline]
+fn unpack_vertex(acc: u128, bits: u32, out: &mut [i32]) {
+    let bias = 1i64 << (bits - 1);
+    let low = (1u64 << bits) - 1;
+    for (i, c) in out.iter_mut().enumerate() {
+        *c = (((acc >> (i as u32 * bits)) as u64 & low) as i64 - bias) as i32;
     }
 }
 
@@ -341,6 +486,66 @@ mod tests {
             c.decode_vertex(&v, &mut w);
             assert_eq!(w, s.base());
         }
+    }
+
+    /// The fixed-width paths against the general ones on a codec of `W` words: the same
+    /// key, simplex, vertex and error.
+    fn fixed_width_case<const W: usize>(c: &KeyCodec, s: &Simplex, back: &mut Simplex) {
+        assert_eq!(c.words(), W);
+        let mut general = [0u64; W];
+        let mut fixed = [u64::MAX; W];
+        let at = c.encode(s, &mut general);
+        let at_w = c.encode_w(s, &mut fixed);
+        assert_eq!(at.is_ok(), at_w.is_ok());
+        if let (Err(a), Err(b)) = (&at, &at_w) {
+            assert_eq!(a.to_string(), b.to_string());
+            return;
+        }
+        assert_eq!(fixed, general, "encode_w: {s:?}");
+        let mut masks = [u64::MAX; W];
+        c.encode_masks_w(s.base(), s.parts(), &mut masks).unwrap();
+        assert_eq!(masks, general, "encode_masks_w");
+        c.decode_into_w(&fixed, back);
+        assert_eq!(back, s, "decode_into_w");
+        let mut v = [0u64; W];
+        let mut v_w = [u64::MAX; W];
+        c.encode_vertex(s.base(), &mut v).unwrap();
+        c.encode_vertex_w(s.base(), &mut v_w).unwrap();
+        assert_eq!(v_w, v, "encode_vertex_w");
+        let mut x = vec![0i32; s.ambient_dim()];
+        c.decode_vertex_w(&v_w, &mut x);
+        assert_eq!(x, s.base(), "decode_vertex_w");
+    }
+
+    #[test]
+    fn fixed_width_keys_are_the_general_keys() {
+        let mut rng = ChaCha8Rng::seed_from_u64(11);
+        let mut back = Simplex::vertex(&[0; 3]).unwrap();
+        let mut seen = [0usize; 4];
+        for round in 0..20_000 {
+            let d = 1 + round % MAX_DIM.min(12);
+            let l = rng.random_range(0..=d);
+            let bits = [2u32, 3, 5, 8, 13, 21, 31, 32][round % 8];
+            let c = KeyCodec::new(d, l, bits).unwrap();
+            if c.words() > 3 {
+                continue;
+            }
+            // Mostly in range, at times beyond it (the overflow error).
+            let half = 1i64 << (bits - 1);
+            let reach = if round % 5 == 0 { 2 * half } else { half - 1 };
+            let reach = reach.min(i32::MAX as i64) as i32;
+            let s = random_simplex(&mut rng, d, l, reach);
+            match c.words() {
+                1 => fixed_width_case::<1>(&c, &s, &mut back),
+                2 => fixed_width_case::<2>(&c, &s, &mut back),
+                _ => fixed_width_case::<3>(&c, &s, &mut back),
+            }
+            seen[c.words()] += 1;
+        }
+        assert!(
+            seen[1..].iter().all(|&n| n > 500),
+            "cases per width: {seen:?}"
+        );
     }
 
     #[test]

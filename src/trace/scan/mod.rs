@@ -323,7 +323,7 @@ pub(super) fn chain_key<const W: usize>(
     parts[k] = (full & !prev) | (1 << d);
     debug_assert!(Simplex::from_masks(v0, &parts[..=k]).is_ok());
     let mut key = [0u64; W];
-    ctx.codec.encode_masks(v0, &parts[..=k], &mut key)?;
+    ctx.codec.encode_masks_w(v0, &parts[..=k], &mut key)?;
     Ok(key)
 }
 
