@@ -517,20 +517,34 @@ impl Triangulation {
         mut vertex: impl FnMut(usize, &mut [i32]),
         x: &mut [f64],
     ) {
-        let d = self.d;
-        let (mut v0, mut v) = ([0i32; super::MAX_DIM], [0i32; super::MAX_DIM]);
-        let mut u = [0.0f64; super::MAX_DIM];
-        vertex(0, &mut v0[..d]);
-        for (i, &l) in lambda.iter().enumerate().skip(1) {
-            vertex(i, &mut v[..d]);
-            for c in 0..d {
-                u[c] += l * (v[c] - v0[c]) as f64;
+        // Buffers no larger than needed (as in `vertex_coords`).
+        fn with<const N: usize>(
+            t: &Triangulation,
+            lambda: &[f64],
+            vertex: &mut impl FnMut(usize, &mut [i32]),
+            x: &mut [f64],
+        ) {
+            let d = t.d;
+            let (mut v0, mut v) = ([0i32; N], [0i32; N]);
+            let mut u = [0.0f64; N];
+            vertex(0, &mut v0[..d]);
+            for (i, &l) in lambda.iter().enumerate().skip(1) {
+                vertex(i, &mut v[..d]);
+                for c in 0..d {
+                    u[c] += l * (v[c] - v0[c]) as f64;
+                }
             }
+            for c in 0..d {
+                u[c] += v0[c] as f64;
+            }
+            t.point_from_lattice(&u[..d], x);
         }
-        for c in 0..d {
-            u[c] += v0[c] as f64;
+        match self.d {
+            0..=4 => with::<4>(self, lambda, &mut vertex, x),
+            5..=8 => with::<8>(self, lambda, &mut vertex, x),
+            9..=16 => with::<16>(self, lambda, &mut vertex, x),
+            _ => with::<{ super::MAX_DIM }>(self, lambda, &mut vertex, x),
         }
-        self.point_from_lattice(&u[..d], x);
     }
 
     /// Ambient coordinates of a (real) lattice point u: x = b + A u.

@@ -255,12 +255,23 @@ impl Simplex {
 
     /// Calls `f(i, v_i)` for every vertex in order, in O(d + l) total beyond the calls.
     pub fn for_each_vertex(&self, mut f: impl FnMut(usize, &[i32])) {
-        let d = self.d as usize;
-        let mut v = self.v0;
-        f(0, &v[..d]);
-        for i in 1..=self.dim() {
-            shift_by_mask(&mut v[..d], self.parts[i - 1], d);
-            f(i, &v[..d]);
+        // A buffer no larger than needed: copying all MAX_DIM coordinates cost more than
+        // the walk itself in low dimensions.
+        fn with<const N: usize>(s: &Simplex, f: &mut impl FnMut(usize, &[i32])) {
+            let d = s.d as usize;
+            let mut v = [0i32; N];
+            v[..d].copy_from_slice(s.base());
+            f(0, &v[..d]);
+            for i in 1..=s.dim() {
+                shift_by_mask(&mut v[..d], s.parts[i - 1], d);
+                f(i, &v[..d]);
+            }
+        }
+        match self.d {
+            0..=4 => with::<4>(self, &mut f),
+            5..=8 => with::<8>(self, &mut f),
+            9..=16 => with::<16>(self, &mut f),
+            _ => with::<MAX_DIM>(self, &mut f),
         }
     }
 
