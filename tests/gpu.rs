@@ -420,6 +420,11 @@ fn gpu_traces_take_the_cpu_verdicts_lambda_and_rim() {
                 let st = oracle.stats();
                 assert!(st.solved > 0, "{what}: the GPU did nothing");
                 assert_eq!(st.contradicted, 0, "{what}: {st:?}");
+                if emulate.is_none() {
+                    // Only the verdicts come back from the device, 4 bytes each: every
+                    // lambda is the CPU's.
+                    assert_eq!(st.readback_bytes, 4 * st.solved, "{what}: {st:?}");
+                }
                 eprintln!("{what}: {log:?}");
             }
         }

@@ -40,8 +40,8 @@ impl GpuOracle<'_> {
     }
 
     /// Uploads `input`, runs `pipeline` over `count` items with `input` bound at 0 and
-    /// outputs of the given byte sizes at 1.. (zeroed first when `zeroed`), and starts
-    /// copying the outputs back; the device works while the caller does other things, until
+    /// `outputs` at 1.. (zeroed first when `zeroed`), and starts copying back those to be
+    /// read; the device works while the caller does other things, until
     /// [`GpuOracle::finish`]. The buffers come from `stage`'s pool and go back at the finish.
     pub(super) fn submit(
         &self,
@@ -49,7 +49,7 @@ impl GpuOracle<'_> {
         pipeline: &wgpu::ComputePipeline,
         input: &[u8],
         count: usize,
-        outputs: &[usize],
+        outputs: &[Output],
         zeroed: bool,
     ) -> Result<Pending> {
         let phased = self.phased.load(Ordering::Relaxed);
@@ -57,7 +57,7 @@ impl GpuOracle<'_> {
         let storage = wgpu::BufferUsages::STORAGE;
         let sizes: Vec<u64> = outputs
             .iter()
-            .map(|&want| (want.max(4) as u64).next_multiple_of(4))
+            .map(|o| (o.bytes.max(4) as u64).next_multiple_of(4))
             .collect();
         // Slots: 0 input, 1 parameters, then output i at 2 + 2i and its staging copy next.
         let mut wanted = vec![
@@ -88,8 +88,13 @@ impl GpuOracle<'_> {
         let params_bytes = 16;
         self.upload_bytes
             .fetch_add(input.len() as u64 + params_bytes, Ordering::Relaxed);
-        self.readback_bytes
-            .fetch_add(sizes.iter().sum::<u64>(), Ordering::Relaxed);
+        let read_bytes: u64 = sizes
+            .iter()
+            .zip(outputs)
+            .filter(|(_, o)| o.read)
+            .map(|(s, _)| s)
+            .sum();
+        self.readback_bytes.fetch_add(read_bytes, Ordering::Relaxed);
         if phased {
             let index = self.gpu.queue.submit([]);
             self.wait(Some(index))?;
@@ -149,24 +154,35 @@ impl GpuOracle<'_> {
             add_time(&self.compute_ns, t);
             enc = dev.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: None });
         }
-        for (pair, &size) in bufs[2..].chunks_exact(2).zip(&sizes) {
+        let read = || {
+            bufs[2..]
+                .chunks_exact(2)
+                .zip(&sizes)
+                .zip(outputs)
+                .filter(|(_, o)| o.read)
+        };
+        for ((pair, &size), _) in read() {
             enc.copy_buffer_to_buffer(&pair[0], 0, &pair[1], 0, size);
         }
         let index = self.gpu.queue.submit([enc.finish()]);
         let mut maps = Vec::with_capacity(outputs.len());
-        for ((pair, &size), &want) in bufs[2..].chunks_exact(2).zip(&sizes).zip(outputs) {
+        for ((pair, &size), o) in bufs[2..].chunks_exact(2).zip(&sizes).zip(outputs) {
+            if !o.read {
+                maps.push(None);
+                continue;
+            }
             let (tx, rx) = std::sync::mpsc::channel();
             pair[1]
                 .slice(..size)
                 .map_async(wgpu::MapMode::Read, move |r| {
                     let _ = tx.send(r);
                 });
-            maps.push(Readback {
+            maps.push(Some(Readback {
                 staging: pair[1].clone(),
                 size,
-                want,
+                want: o.bytes,
                 mapped: rx,
-            });
+            }));
         }
         add_time(&self.gpu_ns, started);
         Ok(Pending {
@@ -227,18 +243,23 @@ impl GpuOracle<'_> {
             .map_err(|_| Error::Gpu("a previous GPU call panicked".into()))
     }
 
-    /// Waits for a submitted round trip and returns its outputs' bytes.
+    /// Waits for a submitted round trip and returns its outputs' bytes (none for an output
+    /// not read back).
     pub(super) fn finish(&self, pending: Pending) -> Result<Vec<Vec<u8>>> {
         let started = Instant::now();
         self.wait(Some(pending.index))?;
         let mut results = Vec::with_capacity(pending.maps.len());
-        for Readback {
-            staging,
-            size,
-            want,
-            mapped,
-        } in pending.maps
-        {
+        for map in pending.maps {
+            let Some(Readback {
+                staging,
+                size,
+                want,
+                mapped,
+            }) = map
+            else {
+                results.push(Vec::new());
+                continue;
+            };
             mapped
                 .recv()
                 .map_err(|_| Error::Gpu("the readback was dropped".into()))?
@@ -312,13 +333,33 @@ impl GpuOracle<'_> {
     }
 }
 
+/// An output buffer of a shader stage: its size in bytes, and whether it is copied back.
+#[derive(Clone, Copy, Debug)]
+pub(super) struct Output {
+    pub bytes: usize,
+    pub read: bool,
+}
+
+impl Output {
+    /// An output copied back.
+    pub fn read(bytes: usize) -> Self {
+        Output { bytes, read: true }
+    }
+
+    /// An output the shader writes but the host never reads.
+    pub fn unread(bytes: usize) -> Self {
+        Output { bytes, read: false }
+    }
+}
+
 /// A round trip on its way, from [`GpuOracle::submit`] to [`GpuOracle::finish`], with the
 /// buffers it checked out of its stage's pool.
 pub(super) struct Pending {
     stage: Stage,
     buffers: Vec<wgpu::Buffer>,
     index: wgpu::SubmissionIndex,
-    maps: Vec<Readback>,
+    /// Per output, its readback (none for an output left on the device).
+    maps: Vec<Option<Readback>>,
     readback_from: Instant,
 }
 

@@ -4,7 +4,7 @@
 use std::sync::OnceLock;
 use std::time::Instant;
 
-use super::device::{add_time, pipeline, Stage};
+use super::device::{add_time, pipeline, Output, Stage};
 use super::GpuOracle;
 use crate::error::{Error, Result};
 
@@ -92,7 +92,14 @@ impl GpuOracle<'_> {
                 .collect();
             let input = self.encode_reals(&input);
             add_time(&self.host_ns, packing);
-            let pending = self.submit(stage, pipe, &input, count, &[count * outs * rs], false)?;
+            let pending = self.submit(
+                stage,
+                pipe,
+                &input,
+                count,
+                &[Output::read(count * outs * rs)],
+                false,
+            )?;
             let out = self.finish(pending)?;
             let decoding = Instant::now();
             values.extend(self.decode_reals(&out[0]));

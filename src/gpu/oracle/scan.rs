@@ -7,7 +7,7 @@ use std::time::Instant;
 
 use rayon::prelude::*;
 
-use super::device::{add_time, pipeline, Stage};
+use super::device::{add_time, pipeline, Output, Stage};
 use super::GpuOracle;
 use crate::error::{Error, Result};
 use crate::gpu::wgsl::{stage_prelude, validate, Precision};
@@ -181,7 +181,7 @@ impl GpuOracle<'_> {
                 pipeline,
                 bytemuck::cast_slice(&window.input),
                 cubes.div_ceil(SCAN_RUN),
-                &[4, cap * record * 4],
+                &[Output::read(4), Output::read(cap * record * 4)],
                 true,
             )?;
             let res = self.finish(pending)?;

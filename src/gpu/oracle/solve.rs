@@ -10,7 +10,7 @@ use std::time::Instant;
 
 use rayon::prelude::*;
 
-use super::device::{add_time, Stage};
+use super::device::{add_time, Output, Stage};
 use super::GpuOracle;
 use crate::cpu::batch;
 use crate::cpu::certificate::{Margins, BIG, MAX_CONTRACTION, MAX_N};
@@ -126,7 +126,10 @@ impl GpuOracle<'_> {
         flags: &mut Vec<u32>,
         lam: &mut Vec<f64>,
     ) -> Result<()> {
-        let outputs = [c * (self.k + 1) * self.real_size(), c * 4];
+        let outputs = [
+            Output::read(c * (self.k + 1) * self.real_size()),
+            Output::read(c * 4),
+        ];
         let pending = self.submit(stage, pipeline, input, c, &outputs, false)?;
         let res = self.finish(pending)?;
         lam.extend(self.decode_reals(&res[0]));
@@ -188,7 +191,11 @@ impl GpuOracle<'_> {
             let (sent, bytes) = next
                 .take()
                 .expect("each chunk is prepared before it is sent");
-            let outputs = [sent.len() * n * rs, sent.len() * 4];
+            // Only the verdicts come back: settling takes every lambda from the CPU.
+            let outputs = [
+                Output::unread(sent.len() * n * rs),
+                Output::read(sent.len() * 4),
+            ];
             let emulated = self
                 .emulated()
                 .filter(|_| !sent.is_empty())
