@@ -160,16 +160,24 @@ impl KeyCodec {
             out[w] = acc;
         }
         if spill != 0 {
-            let c = v[..self.d]
-                .iter()
-                .find(|&&c| (c as i64 + bias) as u64 >> bits != 0)
-                .expect("a coordinate spilled");
-            return Err(Error::KeyOverflow {
-                value: *c as i64,
-                bits,
-            });
+            return Err(self.overflow(v));
         }
         Ok(())
+    }
+
+    /// The error for a vertex with a coordinate that does not fit `coord_bits`.
+    #[cold]
+    fn overflow(&self, v: &[i32]) -> Error {
+        let bits = self.coord_bits;
+        let bias = 1i64 << (bits - 1);
+        let c = v[..self.d]
+            .iter()
+            .find(|&&c| (c as i64 + bias) as u64 >> bits != 0)
+            .expect("a coordinate spilled");
+        Error::KeyOverflow {
+            value: *c as i64,
+            bits,
+        }
     }
 
     /// Unpacks a vertex written by [`KeyCodec::encode_vertex`] into `out` (d coordinates).
@@ -191,6 +199,7 @@ impl KeyCodec {
         if W > 2 {
             return self.encode(s, out);
         }
+        debug_assert_eq!(self.words, W);
         self.check_simplex(s)?;
         self.encode_masks_w(s.base(), s.parts(), out)
     }
@@ -242,6 +251,7 @@ impl KeyCodec {
         if W > 2 {
             return self.decode_into(key, out);
         }
+        debug_assert_eq!(self.words, W);
         let acc = join_words(key);
         let (bits, pbits) = (self.coord_bits, self.part_bits);
         let (v0, parts) = out.reset(self.d, self.l + 1);
@@ -265,6 +275,7 @@ impl KeyCodec {
         if W > 2 {
             return self.decode_vertex(key, out);
         }
+        debug_assert_eq!(self.words, W);
         unpack_vertex(join_words(key), self.coord_bits, &mut out[..self.d]);
     }
 
@@ -283,9 +294,7 @@ impl KeyCodec {
             pos += bits;
         }
         if spill != 0 {
-            // The general path finds the coordinate and builds the error.
-            let mut scratch = [0u64; 2];
-            self.encode_vertex(v, &mut scratch)?;
+            return Err(self.overflow(v));
         }
         Ok(acc)
     }

@@ -70,13 +70,14 @@ impl GpuOracle<'_> {
                 wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
             ),
         ];
-        for &size in &sizes {
+        for (&size, o) in sizes.iter().zip(outputs) {
             wanted.push((
                 size,
                 storage | wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST,
             ));
+            // An output left on the device keeps its slot with a staging buffer it never uses.
             wanted.push((
-                size,
+                if o.read { size } else { 4 },
                 wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
             ));
         }
@@ -154,15 +155,10 @@ impl GpuOracle<'_> {
             add_time(&self.compute_ns, t);
             enc = dev.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: None });
         }
-        let read = || {
-            bufs[2..]
-                .chunks_exact(2)
-                .zip(&sizes)
-                .zip(outputs)
-                .filter(|(_, o)| o.read)
-        };
-        for ((pair, &size), _) in read() {
-            enc.copy_buffer_to_buffer(&pair[0], 0, &pair[1], 0, size);
+        for ((pair, &size), o) in bufs[2..].chunks_exact(2).zip(&sizes).zip(outputs) {
+            if o.read {
+                enc.copy_buffer_to_buffer(&pair[0], 0, &pair[1], 0, size);
+            }
         }
         let index = self.gpu.queue.submit([enc.finish()]);
         let mut maps = Vec::with_capacity(outputs.len());
