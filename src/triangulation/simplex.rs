@@ -818,6 +818,11 @@ mod tests {
                 assert_eq!(f.parts()[l - 1] >> d & 1, 1, "facet not canonical");
                 s.facet_into(q, &mut out);
                 assert_eq!(&out, f, "facet_into({q}) of {s}");
+                // Into a scratch holding the simplex itself: nothing of its parts may stay
+                // (in increasing q, the previous facet's parts are already the right ones).
+                let mut fresh = s.clone();
+                s.facet_into(q, &mut fresh);
+                assert_eq!(&fresh, f, "facet_into({q}) of {s} over itself");
             }
         }
     }
