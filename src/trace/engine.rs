@@ -8,7 +8,9 @@ use rayon::prelude::*;
 
 use super::frontier::{sort, Back, Found, Frontier, Members, Verdicts};
 use super::table::{Key, Table};
-use super::{Decisions, Progress, StopReason, TraceContext, TraceStats, DEFAULT_EXTENT_STEPS};
+use super::{
+    Decisions, GrowingValues, Progress, StopReason, TraceContext, TraceStats, DEFAULT_EXTENT_STEPS,
+};
 use crate::cpu::solve::Status;
 use crate::error::Result;
 
@@ -28,7 +30,9 @@ pub(crate) struct Engine<'a, const W: usize> {
     pub rim_points: Vec<f64>,
     /// The vertex-value cache: lattice vertices, and f at them (k values each).
     pub verts: Table<W>,
+    /// Only ever grows at its end: see [`GrowingValues`], its name.
     pub values: Vec<f64>,
+    pub values_log: GrowingValues,
     pub stats: TraceStats,
     /// Lattice base vertices of the seeds' first simplices (d each), to tell, with no box,
     /// how far the trace has gone.
@@ -44,6 +48,7 @@ impl<'a, const W: usize> Engine<'a, W> {
             rim_points: Vec::new(),
             verts: Table::fixed(),
             values: Vec::new(),
+            values_log: GrowingValues::new(),
             stats: TraceStats::default(),
             origins: Vec::new(),
         }
@@ -275,11 +280,13 @@ impl<'a, const W: usize> Engine<'a, W> {
         let m = rows.len() / n;
         let mut status = vec![Status::Outside; m];
         let mut lambda = vec![0.0; m * n];
-        let exact =
-            self.ctx
-                .oracle
-                .decisions()
-                .decide(&self.values, rows, &mut status, &mut lambda)?;
+        let exact = self.ctx.oracle.decisions().decide_growing(
+            self.values_log,
+            &self.values,
+            rows,
+            &mut status,
+            &mut lambda,
+        )?;
         Ok((Verdicts { status, lambda }, exact))
     }
 

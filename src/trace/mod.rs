@@ -37,7 +37,9 @@ use serde::Serialize;
 
 pub use crate::cpu::certificate::{CROSSED, OUTSIDE, UNCERTAIN};
 pub use crate::cpu::solve::Status;
-pub use oracle::{CpuOracle, CpuScan, Decide, Decisions, DeviceValues, Evaluate, Oracle, Scan};
+pub use oracle::{
+    CpuOracle, CpuScan, Decide, Decisions, DeviceValues, Evaluate, GrowingValues, Oracle, Scan,
+};
 pub use region::{box_slack, coord_bits, in_box, in_box_closed, lattice_bounds, Domain};
 use sample::sample_from;
 pub use sample::{CrossingChecks, Sample, MAX_SINGULAR};
@@ -531,6 +533,17 @@ mod tests {
             lambda: &mut [f64],
         ) -> Result<super::Decisions> {
             self.0.decide(values, simplices, status, lambda)
+        }
+        fn decide_growing(
+            &self,
+            log: super::GrowingValues,
+            values: &[f64],
+            simplices: &[u32],
+            status: &mut [crate::cpu::solve::Status],
+            lambda: &mut [f64],
+        ) -> Result<super::Decisions> {
+            self.0
+                .decide_growing(log, values, simplices, status, lambda)
         }
         fn level_slice(&self) -> Option<usize> {
             Some(5)

@@ -4,6 +4,7 @@
 //! ([`Scan`], [`DeviceValues`]); an [`Oracle`] names the part it chose for each.
 
 use std::ops::Range;
+use std::sync::atomic::{AtomicU64, Ordering};
 
 use super::ScanGrid;
 use crate::cpu::batch;
@@ -30,6 +31,26 @@ impl std::ops::AddAssign for Decisions {
     }
 }
 
+/// Names an array of vertex values that, between calls of [`Decide::decide_growing`] with
+/// the same name, only grows at its end, its earlier rows unchanged (a trace's vertex cache):
+/// an oracle may keep the rows it has seen, a device in its memory.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct GrowingValues(u64);
+
+impl GrowingValues {
+    /// A name no other array of this process has.
+    pub fn new() -> Self {
+        static NEXT: AtomicU64 = AtomicU64::new(1);
+        GrowingValues(NEXT.fetch_add(1, Ordering::Relaxed))
+    }
+}
+
+impl Default for GrowingValues {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
 /// f at lattice vertices, the values every decision is made from.
 pub trait Evaluate: Sync {
     /// f at lattice vertices: `lattice` holds n rows of d, `values` gets n rows of k.
@@ -49,6 +70,22 @@ pub trait Decide: Sync {
         status: &mut [Status],
         lambda: &mut [f64],
     ) -> Result<Decisions>;
+
+    /// [`Decide::decide`] on `values` named `log`: between calls with the same name they
+    /// only grow at their end ([`GrowingValues`]), so the oracle may keep the rows it has
+    /// seen (the GPU's keeps them on the device and uploads vertex ids). The default decides
+    /// as `decide` does.
+    fn decide_growing(
+        &self,
+        log: GrowingValues,
+        values: &[f64],
+        simplices: &[u32],
+        status: &mut [Status],
+        lambda: &mut [f64],
+    ) -> Result<Decisions> {
+        let _ = log;
+        self.decide(values, simplices, status, lambda)
+    }
 
     /// Frontier simplices per slice of a trace level, for decisions that run off the CPU (a
     /// device): the level is then named and decided slice by slice, naming slice c + 1 on

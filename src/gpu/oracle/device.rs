@@ -23,8 +23,17 @@ pub(super) enum Stage {
     EvalVertices,
     EvalCertified,
     SolveCertified,
+    SolveIds,
 }
-pub(super) const STAGES: usize = 5;
+pub(super) const STAGES: usize = 6;
+
+/// A pipeline and the buffers kept on the device that it reads, bound after its parameters
+/// (at 2 + the number of outputs, on).
+#[derive(Clone, Copy)]
+pub(super) struct Kernel<'a> {
+    pub pipeline: &'a wgpu::ComputePipeline,
+    pub kept: &'a [&'a wgpu::Buffer],
+}
 
 impl GpuOracle<'_> {
     /// The bytes one storage binding may hold.
@@ -52,6 +61,24 @@ impl GpuOracle<'_> {
         outputs: &[Output],
         zeroed: bool,
     ) -> Result<Pending> {
+        let kernel = Kernel {
+            pipeline,
+            kept: &[],
+        };
+        self.submit_kernel(stage, kernel, input, count, outputs, zeroed)
+    }
+
+    /// [`GpuOracle::submit`] of a kernel that also reads buffers kept on the device.
+    pub(super) fn submit_kernel(
+        &self,
+        stage: Stage,
+        kernel: Kernel<'_>,
+        input: &[u8],
+        count: usize,
+        outputs: &[Output],
+        zeroed: bool,
+    ) -> Result<Pending> {
+        let pipeline = kernel.pipeline;
         let phased = self.phased.load(Ordering::Relaxed);
         let started = Instant::now();
         let storage = wgpu::BufferUsages::STORAGE;
@@ -127,6 +154,12 @@ impl GpuOracle<'_> {
             binding: outs.len() as u32 + 1,
             resource: ubuf.as_entire_binding(),
         });
+        for (i, kept) in kernel.kept.iter().enumerate() {
+            entries.push(wgpu::BindGroupEntry {
+                binding: (outs.len() + 2 + i) as u32,
+                resource: kept.as_entire_binding(),
+            });
+        }
         let dev = &self.gpu.device;
         let bind = dev.create_bind_group(&wgpu::BindGroupDescriptor {
             label: None,

@@ -1,14 +1,19 @@
-//! The test hook of [`GpuOracle::emulate_device`]: the floating-point stages (the solve, the
-//! certified solve, the certified values) computed on the CPU by their twins in the
+//! The test hook of [`GpuOracle::emulate_device`]: the floating-point stages (the solve and
+//! the solve from vertex ids, the certified solve, the certified values) computed on the CPU by their twins in the
 //! arithmetic of an emulated conforming device ([`crate::emulate`]), on the very inputs the
 //! shaders would get; the host code around them runs unchanged. A simplex (or a batch of
 //! vertices) draws its rounding from a stream named by the seed and its index, so the
 //! results do not depend on threads.
 
+use std::ops::Range;
+
 use rayon::prelude::*;
 
+use super::solve_ids::{held, ids_rounding, pow2_inverse_f32};
 use super::GpuOracle;
-use crate::cpu::certificate::{certify, gauss_jordan, CertifiedSolver, Margins, UNCERTAIN};
+use crate::cpu::certificate::{
+    certify, gauss_jordan, CertifiedSolver, Margins, OUTSIDE, UNCERTAIN,
+};
 use crate::cpu::eval_certified::eval_lattice_certified;
 use crate::emulate::{self, Emu32, Emu64};
 use crate::error::{Error, Result};
@@ -32,9 +37,47 @@ fn solve_one<R: DeviceReal>(
     tiny: f64,
     lambda: &mut [f64],
 ) -> u32 {
+    let rows: Vec<R> = rows.iter().map(|&v| R::of(v)).collect();
+    solve_rows(n, &rows, unit, tiny, lambda)
+}
+
+/// `shaders/solve_ids.wgsl` for one simplex in R, from the values of its n vertices as the
+/// host keeps them for the device (`vals`: k per vertex, every one held): the sign filter,
+/// each row scaled on the device by the shader's power of two, then as `solve_one`.
+fn solve_ids_one<R: DeviceReal>(k: usize, vals: &[f64], unit: f64, tiny: f64) -> u32 {
+    let n = k + 1;
+    let at = |j: usize, c: usize| R::of(vals[j * k + c]);
+    let mut rows = vec![R::of(0.0); k * n];
+    for c in 0..k {
+        let (mut big, mut pos, mut neg) = (0.0f64, 0, 0);
+        for j in 0..n {
+            // Held values are normal or 0: compared and maximised exactly.
+            let x = at(j, c).wide();
+            big = big.max(x.abs());
+            pos += usize::from(x > 0.0);
+            neg += usize::from(x < 0.0);
+        }
+        if pos == n || neg == n {
+            return OUTSIDE;
+        }
+        let scale = R::of(pow2_inverse_f32(big));
+        for j in 0..n {
+            rows[c * n + j] = at(j, c).mul(scale);
+        }
+    }
+    solve_rows(n, &rows, unit, tiny, &mut vec![0.0; n])
+}
+
+/// The solve shaders' common end in R, on rows 1..n of L already on the device.
+fn solve_rows<R: DeviceReal>(
+    n: usize,
+    rows: &[R],
+    unit: f64,
+    tiny: f64,
+    lambda: &mut [f64],
+) -> u32 {
     let (mut l, mut e) = (vec![R::of(1.0); n * n], vec![R::of(0.0); n * n]);
     for (t, &v) in rows.iter().enumerate() {
-        let v = R::of(v);
         l[n + t] = v;
         e[n + t] = R::of(unit).mul(v.abs()).add(R::of(tiny));
     }
@@ -103,6 +146,38 @@ impl GpuOracle<'_> {
             self.encode_reals(&lambda),
             bytemuck::cast_slice(&flags).to_vec(),
         ]
+    }
+
+    /// The solve stage from vertex ids on simplices `range` of `simplices` (rows of n
+    /// indices into `values`, rows of k): the shader's flags. A simplex with a vertex the
+    /// device does not hold ([`held`]) is uncertain, as the shader leaves it.
+    pub(super) fn emulated_solve_ids(
+        &self,
+        seed: u64,
+        values: &[f64],
+        simplices: &[u32],
+        range: Range<usize>,
+    ) -> Vec<u8> {
+        let (k, n, p) = (self.k, self.k + 1, self.precision);
+        let (unit, tiny) = ids_rounding(p);
+        let mut flags = vec![UNCERTAIN; range.len()];
+        flags.par_iter_mut().enumerate().for_each(|(i, f)| {
+            let s = range.start + i;
+            emulate::seed(stream(seed, s as u64));
+            let mut vals = Vec::with_capacity(k * n);
+            for &v in &simplices[s * n..(s + 1) * n] {
+                let row = &values[v as usize * k..(v as usize + 1) * k];
+                if !row.iter().all(|&x| held(x, p)) {
+                    return;
+                }
+                vals.extend_from_slice(row);
+            }
+            *f = match p {
+                Precision::F32 => solve_ids_one::<Emu32>(k, &vals, unit, tiny),
+                Precision::F64 => solve_ids_one::<Emu64>(k, &vals, unit, tiny),
+            };
+        });
+        bytemuck::cast_slice(&flags).to_vec()
     }
 
     /// The certified solve stage on packed rows and bounds: flags and x.

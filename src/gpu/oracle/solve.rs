@@ -27,7 +27,7 @@ pub(super) const GAUSS_JORDAN_WGSL: &str = include_str!("../../../shaders/gauss_
 /// The a-posteriori certificate, shared by both solve shaders.
 pub(super) const CERTIFY_WGSL: &str = include_str!("../../../shaders/certify.wgsl");
 /// Simplices per pipelined chunk of a decision batch.
-const PIPELINE_CHUNK: usize = 1 << 17;
+pub(super) const PIPELINE_CHUNK: usize = 1 << 17;
 /// Shader verdicts.
 const CROSSED: u32 = 0;
 const OUTSIDE: u32 = 1;
@@ -220,7 +220,7 @@ impl GpuOracle<'_> {
                 next = Some(self.prepare(values, simplices, r.clone(), status));
             }
             if let Some((prev, res)) = solved.take() {
-                decided += self.settle(values, simplices, &prev, &res, status, lambda)?;
+                decided += self.settle(values, simplices, &prev, &res[1], status, lambda)?;
             }
             let res = match (early, pending) {
                 (Some(res), _) => res,
@@ -231,7 +231,7 @@ impl GpuOracle<'_> {
             solved = Some((sent, res));
         }
         if let Some((prev, res)) = solved {
-            decided += self.settle(values, simplices, &prev, &res, status, lambda)?;
+            decided += self.settle(values, simplices, &prev, &res[1], status, lambda)?;
         }
         Ok(decided)
     }
@@ -274,24 +274,25 @@ impl GpuOracle<'_> {
         (sent, bytes)
     }
 
-    /// Host side after the shader: keeps the certified misses and decides the rest of
-    /// `sent` on the CPU, in one gathered batch. The device's crossings are decided there too,
+    /// Host side after the shader, given its verdicts on `sent` (`flags`, 4 bytes each):
+    /// keeps the certified misses and decides the rest of `sent` on the CPU, in one gathered
+    /// batch. The device's crossings are decided there too,
     /// so that every lambda (and so every point) is the CPU's, whatever the device's
     /// rounding; a crossing the CPU rejects is counted in
     /// [`GpuStats::contradicted`](super::GpuStats::contradicted). Returns the count of exact
     /// decisions and of those the device took.
-    fn settle(
+    pub(super) fn settle(
         &self,
         values: &[f64],
         simplices: &[u32],
         sent: &[usize],
-        res: &[Vec<u8>],
+        flags: &[u8],
         status: &mut [Status],
         lambda: &mut [f64],
     ) -> Result<Decisions> {
         let started = Instant::now();
         let n = self.k + 1;
-        let flags: Vec<u32> = bytemuck::pod_collect_to_vec(&res[1]);
+        let flags: Vec<u32> = bytemuck::pod_collect_to_vec(flags);
         let mut claimed = Vec::new();
         let recheck: Vec<usize> = sent
             .iter()
