@@ -92,6 +92,8 @@ fn lambda_gap(a: &[f64], b: &[f64], n: usize, crossed: impl Fn(usize) -> bool) -
 #[derive(Debug, Default)]
 struct ShadowLog {
     decided: usize,
+    /// Of those, decided from vertex ids into values the device keeps.
+    growing: usize,
     crossed: usize,
     verdicts_differ: usize,
     lambda_bits_differ: usize,
@@ -185,6 +187,42 @@ impl Decide for Shadow<'_> {
             .dev
             .decisions()
             .decide(values, simplices, status, lambda)?;
+        self.compare(values, simplices, status, lambda)?;
+        Ok(exact)
+    }
+
+    /// A trace's levels: decided from vertex ids on the device, checked as above.
+    fn decide_growing(
+        &self,
+        log: GrowingValues,
+        values: &[f64],
+        simplices: &[u32],
+        status: &mut [Status],
+        lambda: &mut [f64],
+    ) -> isomesh::Result<isomesh::trace::Decisions> {
+        let exact = self
+            .dev
+            .decisions()
+            .decide_growing(log, values, simplices, status, lambda)?;
+        self.log.lock().unwrap().growing += status.len();
+        self.compare(values, simplices, status, lambda)?;
+        Ok(exact)
+    }
+
+    fn level_slice(&self) -> Option<usize> {
+        self.dev.decisions().level_slice()
+    }
+}
+
+impl Shadow<'_> {
+    /// The device's decisions against the CPU's, into the log.
+    fn compare(
+        &self,
+        values: &[f64],
+        simplices: &[u32],
+        status: &[Status],
+        lambda: &[f64],
+    ) -> isomesh::Result<()> {
         let (m, n) = (status.len(), self.n);
         let (mut st, mut lam) = (vec![Status::Outside; m], vec![0.0; lambda.len()]);
         self.cpu.decide(values, simplices, &mut st, &mut lam)?;
@@ -195,11 +233,7 @@ impl Decide for Shadow<'_> {
         log.verdicts_differ += status.iter().zip(&st).filter(|(a, b)| a != b).count();
         log.lambda_bits_differ += bits;
         log.lambda_worst = log.lambda_worst.max(worst);
-        Ok(exact)
-    }
-
-    fn level_slice(&self) -> Option<usize> {
-        self.dev.decisions().level_slice()
+        Ok(())
     }
 }
 
@@ -405,6 +439,10 @@ fn gpu_traces_take_the_cpu_verdicts_lambda_and_rim() {
                 );
                 // What the device returned: every verdict and lambda of the trace.
                 let log = shadow.check(&what);
+                assert_eq!(
+                    log.growing, log.decided,
+                    "{what}: levels not decided from ids"
+                );
                 assert_eq!(cpu.stats.oracle_calls, gpu.stats.oracle_calls, "{what}");
                 assert_eq!(cpu.sorted_keys(), gpu.sorted_keys(), "{what}: S differs");
                 // The rim it decided: the same crossings outside the box, at the CPU's points.
