@@ -203,7 +203,7 @@ impl OracleBatch {
     /// Runs `oracle` on the batch `repeats` times: the median simplices per second, and the
     /// verdicts and lambda of the last run. The values are the same in every run
     /// ([`Decide::decide_growing`](crate::trace::Decide::decide_growing)): an oracle that
-    /// keeps them (the GPU's, on the device) is sent them in the first run only.
+    /// keeps them (the GPU's, on the device, for k >= 2) is sent them in the first run only.
     pub fn time(
         &self,
         oracle: &dyn Oracle,

@@ -73,8 +73,8 @@ pub trait Decide: Sync {
 
     /// [`Decide::decide`] on `values` named `log`: between calls with the same name they
     /// only grow at their end ([`GrowingValues`]), so the oracle may keep the rows it has
-    /// seen (the GPU's keeps them on the device and uploads vertex ids). The default decides
-    /// as `decide` does.
+    /// seen (the GPU's keeps them on the device and uploads vertex ids, for k >= 2). The
+    /// default decides as `decide` does.
     fn decide_growing(
         &self,
         log: GrowingValues,
