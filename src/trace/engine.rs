@@ -30,8 +30,9 @@ pub(crate) struct Engine<'a, const W: usize> {
     pub rim_points: Vec<f64>,
     /// The vertex-value cache: lattice vertices, and f at them (k values each).
     pub verts: Table<W>,
-    /// Only ever grows at its end: see [`GrowingValues`], its name.
+    /// It only ever grows at its end, so that the oracle may keep the rows it has seen.
     pub values: Vec<f64>,
+    /// The name of `values` for the oracle ([`GrowingValues`]).
     pub values_log: GrowingValues,
     pub stats: TraceStats,
     /// Lattice base vertices of the seeds' first simplices (d each), to tell, with no box,

@@ -276,11 +276,10 @@ impl GpuOracle<'_> {
 
     /// Host side after the shader, given its verdicts on `sent` (`flags`, 4 bytes each):
     /// keeps the certified misses and decides the rest of `sent` on the CPU, in one gathered
-    /// batch. The device's crossings are decided there too,
-    /// so that every lambda (and so every point) is the CPU's, whatever the device's
-    /// rounding; a crossing the CPU rejects is counted in
-    /// [`GpuStats::contradicted`](super::GpuStats::contradicted). Returns the count of exact
-    /// decisions and of those the device took.
+    /// batch. The device's crossings are decided there too, so that every lambda (and so
+    /// every point) is the CPU's, whatever the device's rounding; a crossing the CPU rejects
+    /// is counted in [`GpuStats::contradicted`](super::GpuStats::contradicted). Returns the
+    /// count of exact decisions and of those the device took.
     pub(super) fn settle(
         &self,
         values: &[f64],
