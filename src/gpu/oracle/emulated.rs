@@ -9,6 +9,7 @@ use std::ops::Range;
 
 use rayon::prelude::*;
 
+use super::solve::packed_rounding;
 use super::solve_ids::{held, ids_rounding, pow2_inverse_f32};
 use super::GpuOracle;
 use crate::cpu::certificate::{
@@ -125,11 +126,8 @@ impl GpuOracle<'_> {
         let mut lambda = vec![0.0; m * n];
         let mut flags = vec![UNCERTAIN; m];
         // The shader's entry bounds: the rounding of the host's values to f32, or flushed
-        // subnormals alone in f64 (`solve_shader`).
-        let (unit, tiny) = match self.precision {
-            Precision::F32 => (2.0 * f32::UNIT, 2.0 * f32::MIN_NORMAL),
-            Precision::F64 => (0.0, 2.0 * f64::MIN_NORMAL),
-        };
+        // subnormals alone in f64.
+        let (unit, tiny) = packed_rounding(self.precision);
         flags
             .par_iter_mut()
             .zip(lambda.par_chunks_mut(n))

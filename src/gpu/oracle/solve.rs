@@ -35,19 +35,36 @@ const OUTSIDE: u32 = 1;
 /// The solve shader for k-simplices in precision `p`, validated by naga: the certificate
 /// with entry bounds that cover the rounding of the host's f64 values to `p`.
 pub fn solve_shader(k: usize, p: Precision) -> Result<String> {
-    // f32: |fl(v) - v| <= u |fl(v)|, plus a flushed subnormal (computed in the shader as
-    // 2u |v| + 2 MIN_NORMAL, which stays above that after its own rounding). f64: the
-    // values arrive exact, but for a device that flushes subnormal inputs.
-    let (unit, tiny) = match p {
+    solve_source(k, p, packed_rounding(p), SOLVE_WGSL)
+}
+
+/// The entry bounds of the solve shader on packed rows in precision `p`, (unit, tiny): each
+/// entry of L lies within unit |l| + tiny of the host's value. f32: |fl(v) - v| <= u |fl(v)|,
+/// plus a flushed subnormal (computed in the shader as 2u |v| + 2 MIN_NORMAL, which stays
+/// above that after its own rounding). f64: the values arrive exact, but for a device that
+/// flushes subnormal inputs.
+pub(super) fn packed_rounding(p: Precision) -> (f64, f64) {
+    match p {
         Precision::F32 => (
             2.0 * <f32 as DeviceReal>::UNIT,
             2.0 * <f32 as DeviceReal>::MIN_NORMAL,
         ),
         Precision::F64 => (0.0, 2.0 * <f64 as DeviceReal>::MIN_NORMAL),
-    };
+    }
+}
+
+/// A solve shader for k-simplices in precision `p`, validated by naga: the prelude, the
+/// entry bounds `(unit, tiny)` as `ROUND_UNIT` and `ROUND_TINY`, Gauss-Jordan, the
+/// certificate, then `body`.
+pub(super) fn solve_source(
+    k: usize,
+    p: Precision,
+    (unit, tiny): (f64, f64),
+    body: &str,
+) -> Result<String> {
     let src = format!(
         "{prelude}const ROUND_UNIT: real = {unit};\nconst ROUND_TINY: real = {tiny};\n\
-         {GAUSS_JORDAN_WGSL}{CERTIFY_WGSL}{SOLVE_WGSL}",
+         {GAUSS_JORDAN_WGSL}{CERTIFY_WGSL}{body}",
         prelude = solve_prelude(k, p)?,
         unit = p.literal(unit)?,
         tiny = p.literal(tiny)?,

@@ -12,13 +12,13 @@ use std::sync::MutexGuard;
 use std::time::Instant;
 
 use super::device::{add_time, pipeline, Kernel, Output, Pending, Stage};
-use super::solve::{solve_prelude, CERTIFY_WGSL, GAUSS_JORDAN_WGSL, PIPELINE_CHUNK};
+use super::solve::{solve_source, PIPELINE_CHUNK};
 use super::GpuOracle;
 use crate::cpu::certificate::{CROSSED, OUTSIDE};
 use crate::cpu::solve::Status;
 use crate::error::{Error, Result};
 use crate::expr::certified::DeviceReal;
-use crate::gpu::wgsl::{validate, Precision};
+use crate::gpu::wgsl::Precision;
 use crate::trace::{Decisions, GrowingValues};
 
 /// The solve shader from vertex ids, before its prelude.
@@ -71,16 +71,7 @@ pub(super) fn pow2_inverse_f32(v: f64) -> f64 {
 
 /// The solve shader from vertex ids for k-simplices in precision `p`, validated by naga.
 pub fn solve_ids_shader(k: usize, p: Precision) -> Result<String> {
-    let (unit, tiny) = ids_rounding(p);
-    let src = format!(
-        "{prelude}const ROUND_UNIT: real = {unit};\nconst ROUND_TINY: real = {tiny};\n\
-         {GAUSS_JORDAN_WGSL}{CERTIFY_WGSL}{SOLVE_IDS_WGSL}",
-        prelude = solve_prelude(k, p)?,
-        unit = p.literal(unit)?,
-        tiny = p.literal(tiny)?,
-    );
-    validate(&src, p)?;
-    Ok(src)
+    solve_source(k, p, ids_rounding(p), SOLVE_IDS_WGSL)
 }
 
 /// Vertex values kept on the device between calls: the first `rows` rows of the array
