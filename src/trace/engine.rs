@@ -4,6 +4,8 @@
 
 use std::ops::Range;
 
+use foldhash::fast::FixedState;
+use hashbrown::HashSet;
 use rayon::prelude::*;
 
 use super::frontier::{sort, Back, Found, Frontier, Members, Verdicts};
@@ -38,6 +40,19 @@ pub(crate) struct Engine<'a, const W: usize> {
     /// Lattice base vertices of the seeds' first simplices (d each), to tell, with no box,
     /// how far the trace has gone.
     pub origins: Vec<i32>,
+    /// While a breadth-first run steps: the keys of its last two levels, the only ones of
+    /// S that a new level's candidates can be (see `Engine::is_new`).
+    pub levels: Option<Levels<W>>,
+    /// Key words of S scanned by [`Engine::s_holds`] since S's table was last brought up
+    /// to date.
+    scanned: usize,
+}
+
+/// The keys of the last two levels of a breadth-first run.
+pub(crate) struct Levels<const W: usize> {
+    pub keys: HashSet<Key<W>, FixedState>,
+    /// The last level, a range of S.
+    last: Range<usize>,
 }
 
 impl<'a, const W: usize> Engine<'a, W> {
@@ -52,6 +67,8 @@ impl<'a, const W: usize> Engine<'a, W> {
             values_log: GrowingValues::new(),
             stats: TraceStats::default(),
             origins: Vec::new(),
+            levels: None,
+            scanned: 0,
         }
     }
 
@@ -136,11 +153,46 @@ impl<'a, const W: usize> Engine<'a, W> {
     /// Breadth-first trace from the simplices `frontier` (indices into S, already evaluated)
     /// until no new crossed simplex appears, the box is exhausted or a stop is requested.
     pub fn run(&mut self, frontier: Range<usize>) -> Result<()> {
-        let mut front = Frontier {
+        let front = Frontier {
             rows: self.rows_of(frontier.clone())?,
-            members: Members::Range(frontier),
+            members: Members::Range(frontier.clone()),
             back: Back::default(),
         };
+        let mut keys = HashSet::with_hasher(FixedState::default());
+        keys.extend(frontier.clone().map(|i| *self.s.key(i)));
+        self.levels = Some(Levels {
+            keys,
+            last: frontier,
+        });
+        let ran = self.levels_from(front);
+        self.levels = None;
+        debug_assert!(self.s_is_distinct(), "a key of S twice: `levels` missed it");
+        ran
+    }
+
+    /// Whether S holds no key twice (what `levels` guarantees; O(|S| log |S|), for checks).
+    fn s_is_distinct(&self) -> bool {
+        let mut keys: Vec<&Key<W>> = (0..self.s.len()).map(|i| self.s.key(i)).collect();
+        keys.sort_unstable();
+        keys.windows(2).all(|w| w[0] != w[1])
+    }
+
+    /// Whether S holds `key`, outside a breadth-first run. Its table is brought up to
+    /// date only once a lookup would scan more than that costs: a trace from one seed
+    /// looks up the seed's few other crossed simplices and never builds it.
+    pub(super) fn s_holds(&mut self, key: &Key<W>) -> bool {
+        let tail = self.s.unindexed();
+        if tail > 0 && self.scanned + tail <= 4 * tail {
+            self.scanned += tail;
+            return self.s.find_scanning_rest(key).is_some();
+        }
+        self.s.index_rest();
+        self.scanned = 0;
+        self.s.find(key).is_some()
+    }
+
+    /// The loop of [`Engine::run`], from the level `front`.
+    fn levels_from(&mut self, mut front: Frontier) -> Result<()> {
         while !front.members.is_empty() {
             // Points only serve to test the domain here (the sample computes its own).
             let with_points = !self.ctx.domain.is_everywhere();
@@ -148,6 +200,13 @@ impl<'a, const W: usize> Engine<'a, W> {
                 return Ok(());
             };
             front = self.accept(found)?;
+            if let (Some(levels), Members::Range(next)) = (&mut self.levels, &front.members) {
+                let last = std::mem::replace(&mut levels.last, next.clone());
+                levels.keys.clear();
+                levels
+                    .keys
+                    .extend(last.chain(next.clone()).map(|i| *self.s.key(i)));
+            }
             if self.beyond_extent(&front.members) {
                 self.stats.stopped = Some(StopReason::NoBox {
                     steps: DEFAULT_EXTENT_STEPS,
@@ -181,6 +240,8 @@ impl<'a, const W: usize> Engine<'a, W> {
     /// outside the domain, looked for from the simplices `border` of S (indices, the only
     /// ones that may have such neighbours). Every vertex of S is cached.
     pub fn complete_rim(&mut self, border: Vec<u32>) -> Result<()> {
+        // Candidates are looked up in S's table (no levels here).
+        self.s.index_rest();
         let all = self.rows_of(0..self.s.len())?;
         let n = self.ctx.k + 1;
         let rows = border
@@ -434,7 +495,13 @@ impl<'a, const W: usize> Engine<'a, W> {
                 back.push_from(&found.back, i);
             }
         }
-        self.s.insert_new_batch(inside.as_flattened())?;
+        if self.levels.is_some() {
+            // A breadth-first run looks its levels up in `levels`: S's table waits until
+            // a lookup needs it ([`Engine::s_holds`]).
+            self.s.push_unindexed(inside.as_flattened())?;
+        } else {
+            self.s.insert_new_batch(inside.as_flattened())?;
+        }
         Ok(Frontier {
             members: Members::Range(start..self.s.len()),
             rows,

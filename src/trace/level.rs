@@ -547,10 +547,25 @@ impl<const W: usize> Engine<'_, W> {
         named.extend(parts)
     }
 
-    /// Whether `key` is neither in S nor in the rim.
+    /// Whether `key`, a facet of a cofacet of the frontier, is neither in S nor in the rim.
+    ///
+    /// In a breadth-first run S is looked up in its last two levels only
+    /// ([`Engine::levels`], a small set held in cache), not in S's table. That is exact:
+    /// the oracle's decisions are consistent (a crossed (k+1)-simplex has exactly two
+    /// crossed facets, and the pivot, checked by the oracle and retried on every facet,
+    /// names the other one), so the trace's neighbour relation is symmetric, a
+    /// breadth-first search's neighbours lie within one level of each other, and a crossed
+    /// facet named from level L lies in level L - 1, in level L, or in no level yet.
+    /// Components traced before are closed under that relation, so none of them holds it.
+    /// (The back lists skip the cofacets shared with level L - 1, so it is rarely asked.)
+    /// A debug build checks at the end of each run that S holds no key twice.
     #[inline]
     fn is_new(&self, key: &Key<W>) -> bool {
-        self.s.find(key).is_none() && (self.rim.is_empty() || self.rim.find(key).is_none())
+        let in_s = match &self.levels {
+            Some(levels) => levels.keys.contains(key),
+            None => self.s.find(key).is_some(),
+        };
+        !in_s && (self.rim.is_empty() || self.rim.find(key).is_none())
     }
 
     /// Pushes onto `out` every facet of `tau` (cofacet `via` of frontier simplex `from`,

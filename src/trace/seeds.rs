@@ -77,8 +77,8 @@ impl<const W: usize> Engine<'_, W> {
                     if self.stats.stopped.is_some() {
                         break;
                     }
-                    let (i, new) = self.s.insert(&key)?;
-                    if new {
+                    if !self.s_holds(&key) {
+                        let i = self.s.push_unindexed(&key)?.start;
                         self.run(i..i + 1)?;
                         traced += 1;
                     }

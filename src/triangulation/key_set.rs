@@ -54,6 +54,8 @@ pub struct KeySet<N: Width = usize> {
     arena: Vec<u64>,
     /// Positions in the arena, in the table [`shard`] of their key's hash names.
     tables: Vec<HashTable<u32>>,
+    /// Keys `indexed..len()` are held but not in the tables yet ([`KeySet::push_unindexed`]).
+    indexed: usize,
     hasher: FixedState,
 }
 
@@ -62,6 +64,8 @@ const SEED: u64 = 0x1503_e5a1;
 pub const SHARDS: usize = 16;
 /// Fewest keys a batch insertion indexes on several threads.
 const PAR_BATCH: usize = 128;
+/// Most keys [`KeySet::index_rest`] indexes at once.
+const INDEX_PIECE: usize = 1 << 16;
 
 /// The table of a key with hash `h`: bits the hash tables use for neither the bucket (low
 /// bits) nor the control byte (the top seven).
@@ -97,6 +101,7 @@ impl<const W: usize> KeySet<Words<W>> {
             max_keys: self.max_keys,
             arena: self.arena,
             tables: self.tables,
+            indexed: self.indexed,
             hasher: self.hasher,
         }
     }
@@ -110,6 +115,7 @@ impl<N: Width> KeySet<N> {
             max_keys: 1 << 32,
             arena: Vec::new(),
             tables: (0..SHARDS).map(|_| HashTable::new()).collect(),
+            indexed: 0,
             hasher: FixedState::with_seed(SEED),
         }
     }
@@ -139,9 +145,15 @@ impl<N: Width> KeySet<N> {
         &self.arena[i * w..(i + 1) * w]
     }
 
-    /// The insertion index of `key`, if present.
+    /// The insertion index of `key`, if present. Keys pushed unindexed and not indexed
+    /// since ([`KeySet::index_rest`]) are not found.
     #[inline]
     pub fn find(&self, key: &[u64]) -> Option<usize> {
+        debug_assert_eq!(
+            self.indexed,
+            self.len(),
+            "a lookup with keys left unindexed"
+        );
         let h = self.hasher.hash_one(key);
         let (arena, w) = (&self.arena, self.words());
         self.tables[shard(h)]
@@ -149,11 +161,34 @@ impl<N: Width> KeySet<N> {
             .map(|&i| i as usize)
     }
 
+    /// Keys pushed by [`KeySet::push_unindexed`] and not indexed yet.
+    #[inline]
+    pub fn unindexed(&self) -> usize {
+        self.len() - self.indexed
+    }
+
+    /// The insertion index of `key`, if present: the indexed keys looked up in the table,
+    /// the others scanned one by one.
+    pub fn find_scanning_rest(&self, key: &[u64]) -> Option<usize> {
+        let h = self.hasher.hash_one(key);
+        let (arena, w) = (&self.arena, self.words());
+        self.tables[shard(h)]
+            .find(h, |&i| &arena[i as usize * w..(i as usize + 1) * w] == key)
+            .map(|&i| i as usize)
+            .or_else(|| {
+                arena[self.indexed * w..]
+                    .chunks_exact(w)
+                    .position(|k| k == key)
+                    .map(|i| self.indexed + i)
+            })
+    }
+
     /// Inserts `key`; returns its index and whether it was new. An error, and the set
     /// unchanged, when a new key would need an index past u32 (2^32 keys held already).
     #[inline]
     pub fn insert(&mut self, key: &[u64]) -> Result<(usize, bool)> {
         debug_assert_eq!(key.len(), self.words());
+        self.index_rest();
         let h = self.hasher.hash_one(key);
         let w = self.words();
         let i = self.len();
@@ -161,6 +196,7 @@ impl<N: Width> KeySet<N> {
         let KeySet {
             arena,
             tables,
+            indexed,
             hasher,
             ..
         } = self;
@@ -174,6 +210,7 @@ impl<N: Width> KeySet<N> {
             Entry::Vacant(e) => {
                 e.insert(fits?);
                 arena.extend_from_slice(key);
+                *indexed += 1;
                 Ok((i, true))
             }
         }
@@ -184,6 +221,7 @@ impl<N: Width> KeySet<N> {
     #[inline]
     pub fn insert_new(&mut self, key: &[u64]) -> Result<usize> {
         debug_assert_eq!(key.len(), self.words());
+        self.index_rest();
         debug_assert!(self.find(key).is_none());
         let i = self.len();
         let pos = self.position(i)?;
@@ -193,6 +231,7 @@ impl<N: Width> KeySet<N> {
             hasher.hash_one(&arena[j as usize * w..(j as usize + 1) * w])
         });
         self.arena.extend_from_slice(key);
+        self.indexed += 1;
         Ok(i)
     }
 
@@ -201,27 +240,59 @@ impl<N: Width> KeySet<N> {
     /// by several threads, one table each. An error, and the set unchanged, when they would
     /// need an index past u32.
     pub fn insert_new_batch(&mut self, keys: &[u64]) -> Result<Range<usize>> {
+        self.index_rest();
+        let added = self.push_unindexed(keys)?;
+        self.index_rest();
+        Ok(added)
+    }
+
+    /// Appends the keys `keys` (as [`KeySet::insert_new_batch`] takes them, distinct and
+    /// not in the set) without indexing them: [`KeySet::get`] reads them at once, lookups
+    /// and insertions index them first ([`KeySet::index_rest`]). For a set mostly read by
+    /// index, whose lookups are few and late. Returns their indices; an error, and the set
+    /// unchanged, when they would need an index past u32.
+    pub fn push_unindexed(&mut self, keys: &[u64]) -> Result<Range<usize>> {
         let w = self.words();
         debug_assert_eq!(keys.len() % w, 0);
         let (start, count) = (self.len(), keys.len() / w);
-        if count == 0 {
-            return Ok(start..start);
+        if count > 0 {
+            self.position(start + count - 1)?;
         }
-        self.position(start + count - 1)?;
+        self.arena.extend_from_slice(keys);
+        Ok(start..start + count)
+    }
+
+    /// Indexes the keys pushed by [`KeySet::push_unindexed`] and not indexed yet: a large
+    /// batch on several threads, one table each, in pieces of [`INDEX_PIECE`] keys (their
+    /// hashes are held meanwhile).
+    pub fn index_rest(&mut self) {
+        while self.indexed < self.len() {
+            let count = (self.len() - self.indexed).min(INDEX_PIECE);
+            self.index_piece(count);
+        }
+    }
+
+    /// Indexes the next `count` keys not indexed yet.
+    fn index_piece(&mut self, count: usize) {
+        let (start, w) = (self.indexed, self.words());
+        self.indexed += count;
+        let (arena, hasher) = (&self.arena, &self.hasher);
+        let rehash = |&j: &u32| hasher.hash_one(&arena[j as usize * w..(j as usize + 1) * w]);
+        let keys = &arena[start * w..(start + count) * w];
         if count < PAR_BATCH {
-            for key in keys.chunks_exact(w) {
-                self.insert_new(key)?;
+            for (i, key) in keys.chunks_exact(w).enumerate() {
+                let h = hasher.hash_one(key);
+                // Positions were checked when the keys were pushed.
+                self.tables[shard(h)].insert_unique(h, (start + i) as u32, rehash);
             }
-            return Ok(start..start + count);
+            return;
         }
-        let hasher = &self.hasher;
         let hashes: Vec<u64> = keys
             .par_chunks_exact(w)
             .with_min_len(PAR_BATCH)
             .map(|k| hasher.hash_one(k))
             .collect();
-        self.arena.extend_from_slice(keys);
-        // The batch's positions bucketed by table (a counting sort, in order), so that each
+        // The piece's positions bucketed by table (a counting sort, in order), so that each
         // table's thread reads only its own keys and grows its table once.
         // Table t's positions are order[bounds[t]..bounds[t + 1]].
         let mut bounds = [0usize; SHARDS + 1];
@@ -238,8 +309,6 @@ impl<N: Width> KeySet<N> {
             order[next[t]] = i as u32;
             next[t] += 1;
         }
-        let arena = &self.arena;
-        let rehash = |&j: &u32| hasher.hash_one(&arena[j as usize * w..(j as usize + 1) * w]);
         self.tables
             .par_iter_mut()
             .enumerate()
@@ -250,7 +319,6 @@ impl<N: Width> KeySet<N> {
                     table.insert_unique(hashes[i as usize], start as u32 + i, rehash);
                 }
             });
-        Ok(start..start + count)
     }
 
     /// The table position of the key at index `i`, or the overflow error.
@@ -300,13 +368,13 @@ impl<N: Width> KeySet<N> {
         if len * w > self.arena.capacity() {
             grow += (len * w).max(2 * self.arena.capacity()) * 8;
         }
-        // The tables grow one by one; counted as if they were one (more than they need).
+        // The tables grow one by one; counted as if they were one (more than they need),
+        // holding every key (those pushed unindexed are indexed at the next lookup).
         let capacity: usize = self.tables.iter().map(HashTable::capacity).sum();
         if len > capacity {
-            let ratio = len.div_ceil(capacity.max(1)).next_power_of_two();
             let size: usize = self.tables.iter().map(HashTable::allocation_size).sum();
-            // A bucket: its u32 and a control byte, at 7/8 load.
-            grow += (size.max(len * 5 * 8 / 7)) * ratio.max(2);
+            // A bucket: its u32 and a control byte, at 7/8 load, in a power of two.
+            grow += (len * 8 / 7).next_power_of_two() * 5 + size;
         }
         grow
     }
@@ -355,6 +423,39 @@ mod tests {
         let mut set = set;
         assert_eq!(set.insert(&[1, 2, 3]).unwrap(), (3000, true));
         assert_eq!(set.insert(&keys[..3]).unwrap(), (0, false));
+    }
+
+    #[test]
+    fn keys_pushed_unindexed_are_read_at_once_and_found_once_indexed() {
+        // Small and large pieces, pushed one after another, then indexed together; an
+        // insertion or a second push indexes what is pending first.
+        let mut set = KeySet::new(2);
+        let mut all = Vec::new();
+        for (n, count) in [(0u64, 3usize), (1, PAR_BATCH + 7), (2, 0), (3, 2)] {
+            let keys: Vec<u64> = (0..count as u64).flat_map(|i| [i * 7919, n]).collect();
+            assert_eq!(
+                set.push_unindexed(&keys).unwrap(),
+                all.len() / 2..(all.len() + keys.len()) / 2
+            );
+            all.extend_from_slice(&keys);
+            for (i, key) in all.chunks_exact(2).enumerate() {
+                assert_eq!(set.get(i), key);
+            }
+        }
+        set.index_rest();
+        for (i, key) in all.chunks_exact(2).enumerate() {
+            assert_eq!(set.find(key), Some(i));
+        }
+        assert_eq!(set.find(&[1, 9]), None);
+        set.push_unindexed(&[5, 9]).unwrap();
+        assert_eq!(set.insert(&[5, 9]).unwrap(), (all.len() / 2, false));
+        set.push_unindexed(&[6, 9]).unwrap();
+        assert_eq!(set.insert_new(&[7, 9]).unwrap(), all.len() / 2 + 2);
+        assert_eq!(set.find(&[6, 9]), Some(all.len() / 2 + 1));
+        // Past the last index: refused, the set unchanged.
+        set.max_keys = set.len() + 1;
+        assert!(set.push_unindexed(&[1, 1, 2, 2]).is_err());
+        assert_eq!(set.len(), all.len() / 2 + 3);
     }
 
     #[test]
