@@ -43,8 +43,8 @@ pub(crate) struct Engine<'a, const W: usize> {
     /// While a breadth-first run steps: the keys of its last two levels, the only ones of
     /// S that a new level's candidates can be (see `Engine::is_new`).
     pub levels: Option<Levels<W>>,
-    /// Key words of S scanned by [`Engine::s_holds`] since S's table was last brought up
-    /// to date.
+    /// Keys of S scanned by [`Engine::s_holds`] since S's table was last brought up to
+    /// date.
     scanned: usize,
 }
 
@@ -152,6 +152,8 @@ impl<'a, const W: usize> Engine<'a, W> {
 
     /// Breadth-first trace from the simplices `frontier` (indices into S, already evaluated)
     /// until no new crossed simplex appears, the box is exhausted or a stop is requested.
+    /// The keys it adds to S are not indexed in S's table ([`Engine::s_holds`] and
+    /// [`Engine::complete_rim`] index them when they look S up).
     pub fn run(&mut self, frontier: Range<usize>) -> Result<()> {
         let front = Frontier {
             rows: self.rows_of(frontier.clone())?,

@@ -263,7 +263,7 @@ impl<N: Width> KeySet<N> {
     }
 
     /// Indexes the keys pushed by [`KeySet::push_unindexed`] and not indexed yet: a large
-    /// batch on several threads, one table each, in pieces of [`INDEX_PIECE`] keys (their
+    /// batch on several threads, one table each, in pieces of 2^16 keys (their
     /// hashes are held meanwhile).
     pub fn index_rest(&mut self) {
         while self.indexed < self.len() {
