@@ -186,7 +186,7 @@ impl<'a, const W: usize> Engine<'a, W> {
         let tail = self.s.unindexed();
         if tail > 0 && self.scanned + tail <= 4 * tail {
             self.scanned += tail;
-            return self.s.find_scanning_rest(key).is_some();
+            return self.s.find(key).is_some();
         }
         self.s.index_rest();
         self.scanned = 0;

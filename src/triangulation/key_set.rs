@@ -145,42 +145,31 @@ impl<N: Width> KeySet<N> {
         &self.arena[i * w..(i + 1) * w]
     }
 
-    /// The insertion index of `key`, if present. Keys pushed unindexed and not indexed
-    /// since ([`KeySet::index_rest`]) are not found.
+    /// The insertion index of `key`, if present: looked up in the table, and keys pushed
+    /// unindexed ([`KeySet::push_unindexed`]) and not indexed since scanned one by one.
     #[inline]
     pub fn find(&self, key: &[u64]) -> Option<usize> {
-        debug_assert_eq!(
-            self.indexed,
-            self.len(),
-            "a lookup with keys left unindexed"
-        );
         let h = self.hasher.hash_one(key);
         let (arena, w) = (&self.arena, self.words());
         self.tables[shard(h)]
             .find(h, |&i| &arena[i as usize * w..(i as usize + 1) * w] == key)
             .map(|&i| i as usize)
+            .or_else(|| self.scan_unindexed(key))
+    }
+
+    /// Where the unindexed keys hold `key` (none, but for [`KeySet::push_unindexed`]).
+    fn scan_unindexed(&self, key: &[u64]) -> Option<usize> {
+        let w = self.words();
+        self.arena[self.indexed * w..]
+            .chunks_exact(w)
+            .position(|k| k == key)
+            .map(|i| self.indexed + i)
     }
 
     /// Keys pushed by [`KeySet::push_unindexed`] and not indexed yet.
     #[inline]
     pub fn unindexed(&self) -> usize {
         self.len() - self.indexed
-    }
-
-    /// The insertion index of `key`, if present: the indexed keys looked up in the table,
-    /// the others scanned one by one.
-    pub fn find_scanning_rest(&self, key: &[u64]) -> Option<usize> {
-        let h = self.hasher.hash_one(key);
-        let (arena, w) = (&self.arena, self.words());
-        self.tables[shard(h)]
-            .find(h, |&i| &arena[i as usize * w..(i as usize + 1) * w] == key)
-            .map(|&i| i as usize)
-            .or_else(|| {
-                arena[self.indexed * w..]
-                    .chunks_exact(w)
-                    .position(|k| k == key)
-                    .map(|i| self.indexed + i)
-            })
     }
 
     /// Inserts `key`; returns its index and whether it was new. An error, and the set
@@ -247,9 +236,9 @@ impl<N: Width> KeySet<N> {
     }
 
     /// Appends the keys `keys` (as [`KeySet::insert_new_batch`] takes them, distinct and
-    /// not in the set) without indexing them: [`KeySet::get`] reads them at once, lookups
-    /// and insertions index them first ([`KeySet::index_rest`]). For a set mostly read by
-    /// index, whose lookups are few and late. Returns their indices; an error, and the set
+    /// not in the set) without indexing them: [`KeySet::get`] reads them at once,
+    /// [`KeySet::find`] scans them one by one until [`KeySet::index_rest`] (or an insertion)
+    /// indexes them. For a set mostly read by index, whose lookups are few and late. Returns their indices; an error, and the set
     /// unchanged, when they would need an index past u32.
     pub fn push_unindexed(&mut self, keys: &[u64]) -> Result<Range<usize>> {
         let w = self.words();
@@ -442,11 +431,18 @@ mod tests {
                 assert_eq!(set.get(i), key);
             }
         }
-        set.index_rest();
-        for (i, key) in all.chunks_exact(2).enumerate() {
-            assert_eq!(set.find(key), Some(i));
+        // Found by a scan while unindexed, then in the table.
+        assert_eq!(set.unindexed(), all.len() / 2);
+        for indexed in [false, true] {
+            if indexed {
+                set.index_rest();
+                assert_eq!(set.unindexed(), 0);
+            }
+            for (i, key) in all.chunks_exact(2).enumerate() {
+                assert_eq!(set.find(key), Some(i));
+            }
+            assert_eq!(set.find(&[1, 9]), None);
         }
-        assert_eq!(set.find(&[1, 9]), None);
         set.push_unindexed(&[5, 9]).unwrap();
         assert_eq!(set.insert(&[5, 9]).unwrap(), (all.len() / 2, false));
         set.push_unindexed(&[6, 9]).unwrap();
