@@ -188,8 +188,25 @@ fn tracing_finds_exactly_the_exhaustive_scan() {
             assert_eq!(scanned.stats.components, 1, "{what}");
             assert_door_in_door_out(&traced, &what);
             assert_points_accurate(&p, &traced, edge, c);
+            // The scan's points come from f's values on its grid: the trace's, bit for bit.
+            let (t, s) = (points_by_key(&traced), points_by_key(&scanned));
+            let differ = t.iter().zip(&s).filter(|(a, b)| a != b).count();
+            assert_eq!(differ, 0, "{what}: {differ} of {} points differ", t.len());
         }
     }
+}
+
+/// Every simplex's key and point (as bits), in key order.
+fn points_by_key(s: &Sample) -> Vec<(Vec<u64>, Vec<u64>)> {
+    let d = s.ambient_dim();
+    let mut out: Vec<_> = s
+        .points()
+        .chunks_exact(d)
+        .enumerate()
+        .map(|(i, p)| (s.key(i).to_vec(), p.iter().map(|x| x.to_bits()).collect()))
+        .collect();
+    out.sort();
+    out
 }
 
 #[test]

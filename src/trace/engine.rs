@@ -240,17 +240,13 @@ impl<'a, const W: usize> Engine<'a, W> {
 
     /// Finds the rim of a sample built elsewhere (the scan): the crossed neighbours of S
     /// outside the domain, looked for from the simplices `border` of S (indices, the only
-    /// ones that may have such neighbours). Every vertex of S is cached.
+    /// ones that may have such neighbours). Every vertex of S must be cached
+    /// ([`Engine::cache_vertices_of_s`] or [`Engine::cache_sorted_values`]).
     pub fn complete_rim(&mut self, border: Vec<u32>) -> Result<()> {
         // Candidates are looked up in S's table (no levels here).
         self.s.index_rest();
-        let all = self.rows_of(0..self.s.len())?;
-        let n = self.ctx.k + 1;
-        let rows = border
-            .iter()
-            .flat_map(|&i| &all[i as usize * n..(i as usize + 1) * n])
-            .copied()
-            .collect();
+        let keys: Vec<Key<W>> = border.iter().map(|&i| *self.s.key(i as usize)).collect();
+        let rows = self.rows(&keys)?;
         let front = Frontier {
             members: Members::List(border),
             rows,
@@ -269,6 +265,21 @@ impl<'a, const W: usize> Engine<'a, W> {
     fn rows_of(&mut self, range: Range<usize>) -> Result<Vec<u32>> {
         let keys: Vec<Key<W>> = range.map(|i| *self.s.key(i)).collect();
         self.rows(&keys)
+    }
+
+    /// Evaluates f at the vertices of S not cached yet, and caches them (sorted by key).
+    pub fn cache_vertices_of_s(&mut self) -> Result<()> {
+        self.rows_of(0..self.s.len()).map(drop)
+    }
+
+    /// Caches f's `values` (rows of k) at the lattice vertices `keys`, sorted, distinct and
+    /// not cached yet, computed elsewhere (the scan's grid): not counted as evaluated here.
+    pub(super) fn cache_sorted_values(&mut self, keys: &[Key<W>], values: &[f64]) -> Result<()> {
+        debug_assert!(keys.windows(2).all(|w| w[0] < w[1]));
+        debug_assert_eq!(keys.len() * self.ctx.k, values.len());
+        self.verts.insert_new_batch(keys.as_flattened())?;
+        self.values.extend_from_slice(values);
+        Ok(())
     }
 
     /// Vertex-cache rows (k + 1 indices each) of `cands`, evaluating the vertices not

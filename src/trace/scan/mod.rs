@@ -33,6 +33,7 @@ use super::{
 use crate::cpu::solve::Status;
 use crate::error::{Error, Result};
 use crate::triangulation::{Simplex, MAX_DIM};
+use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::Instant;
 
 /// Largest d for the scan (each cube holds 2^d corners).
@@ -47,12 +48,14 @@ const BATCH_RANGE: (usize, usize) = (1 << 12, 1 << 20);
 
 /// What a scan found: S (keys in sorted order), the simplices of S near the domain's border
 /// (indices into S, in order), counters, with device values the CPU's values it computed
-/// (lattice coordinates, rows of d, and values, rows of k), and the bytes its grid held.
+/// (lattice coordinates, rows of d, and values, rows of k), with the CPU's grid the vertices
+/// of S (keys, sorted) and f's values there (rows of k), and the bytes its grid held.
 pub(crate) struct Scanned<const W: usize> {
     pub table: Table<W>,
     pub border: Vec<u32>,
     pub stats: TraceStats,
     pub cpu_values: Option<(Vec<i32>, Vec<f64>)>,
+    pub vertices: Option<(Vec<Key<W>>, Vec<f64>)>,
     pub grid_bytes: u64,
 }
 
@@ -111,6 +114,7 @@ impl<'a, const W: usize> Found<'a, W> {
             border,
             stats,
             cpu_values,
+            vertices: None,
             grid_bytes: 0,
         })
     }
@@ -186,6 +190,12 @@ pub(crate) fn scan<const W: usize>(ctx: &TraceContext, bbox: &[[f64; 2]]) -> Res
         ..TraceStats::default()
     };
     let mut found = Found::new(ctx);
+    // The grid vertices of S, one bit each: f's values there are kept for the sample.
+    let used: Option<Vec<AtomicU64>> = (!on_device).then(|| {
+        (0..grid.len().div_ceil(64))
+            .map(|_| AtomicU64::new(0))
+            .collect()
+    });
     // The candidates of the next batch are generated while this one is decided: on a GPU,
     // the scan shader runs while the host settles the solve shader's verdicts.
     let mut cubes = 0..BATCH_RANGE.0.min(grid.len());
@@ -218,6 +228,7 @@ pub(crate) fn scan<const W: usize>(ctx: &TraceContext, bbox: &[[f64; 2]]) -> Res
                     grid,
                     &cands,
                     cpu_values.as_mut(),
+                    used.as_deref(),
                     &mut stats,
                     &mut found,
                 )
@@ -232,19 +243,70 @@ pub(crate) fn scan<const W: usize>(ctx: &TraceContext, bbox: &[[f64; 2]]) -> Res
         stats.non_finite = grid.values().par_iter().filter(|v| !v.is_finite()).count() as u64;
     }
     let cpu_values = cpu_values.map(|c| c.into_lattice(&grid));
+    let vertices = used.map(|u| marked_vertices(ctx, &grid, &u)).transpose()?;
+    let grid_bytes = grid.bytes();
+    // S's table is built without the grid alive.
+    drop(grid);
     let mut scanned = found.into_scanned(stats, cpu_values)?;
-    scanned.grid_bytes = grid.bytes();
+    scanned.vertices = vertices;
+    scanned.grid_bytes = grid_bytes;
     Ok(scanned)
+}
+
+/// The grid vertices whose bit is set in `used` (one per vertex, in storage order): their
+/// keys, sorted, and f's values there (rows of k).
+fn marked_vertices<const W: usize>(
+    ctx: &TraceContext,
+    grid: &ScanGrid,
+    used: &[AtomicU64],
+) -> Result<(Vec<Key<W>>, Vec<f64>)> {
+    let (d, k) = (grid.dim(), grid.codim());
+    let mut marked: Vec<u32> = used
+        .par_iter()
+        .enumerate()
+        .flat_map_iter(|(w, bits)| {
+            let mut bits = bits.load(Ordering::Relaxed);
+            std::iter::from_fn(move || {
+                (bits != 0).then(|| {
+                    let b = bits.trailing_zeros();
+                    bits &= bits - 1;
+                    (w * 64) as u32 + b
+                })
+            })
+        })
+        .collect();
+    let key = |i: u32| -> Result<Key<W>> {
+        let mut v = [0i32; MAX_DIM];
+        grid.coords(i as usize, &mut v[..d]);
+        let mut key = [0u64; W];
+        ctx.codec.encode_vertex_w(&v[..d], &mut key)?;
+        Ok(key)
+    };
+    let mut keys: Vec<Key<W>> = marked.par_iter().map(|&i| key(i)).collect::<Result<_>>()?;
+    // Storage order is key order for one-word keys (the last axis is the most significant).
+    if !keys.windows(2).all(|w| w[0] < w[1]) {
+        let mut order: Vec<(Key<W>, u32)> = keys.into_iter().zip(marked).collect();
+        order.par_sort_unstable();
+        (keys, marked) = order.into_iter().unzip();
+    }
+    let values = grid.values();
+    let values = marked
+        .iter()
+        .flat_map(|&i| &values[i as usize * k..(i as usize + 1) * k])
+        .copied()
+        .collect();
+    Ok((keys, values))
 }
 
 /// Decides the candidates `cands` of the grid (of device values where `cpu_values` is
 /// given: [`device_values`]) and appends the crossed ones whose point lies in the domain to
-/// `found`.
+/// `found`, setting their vertices' bits in `used` when given.
 fn decide_batch<const W: usize>(
     ctx: &TraceContext,
     grid: &ScanGrid,
     cands: &Candidates,
     cpu_values: Option<&mut device_values::CpuValues<'_>>,
+    used: Option<&[AtomicU64]>,
     stats: &mut TraceStats,
     found: &mut Found<W>,
 ) -> Result<()> {
@@ -292,6 +354,11 @@ fn decide_batch<const W: usize>(
             );
             if !ctx.domain.contains(&point[..d]) {
                 return Ok(None);
+            }
+            if let Some(used) = used {
+                for &j in row {
+                    used[j as usize / 64].fetch_or(1 << (j % 64), Ordering::Relaxed);
+                }
             }
             grid.coords(row[0] as usize, &mut v[..d]);
             chain_key(ctx, &v[..d], chain).map(|key| Some(found.hit(key, &point[..d])))
@@ -502,6 +569,10 @@ fn exhaustive_with<const W: usize>(ctx: TraceContext) -> Result<Sample> {
     engine.stats = scanned.stats;
     if let Some((lattice, values)) = &scanned.cpu_values {
         engine.seed_vertices(lattice, values)?;
+    }
+    match &scanned.vertices {
+        Some((keys, values)) => engine.cache_sorted_values(keys, values)?,
+        None => engine.cache_vertices_of_s()?,
     }
     engine.complete_rim(scanned.border)?;
     let mut stats = engine.stats.clone();
