@@ -232,6 +232,60 @@ pub(crate) fn chains(
     }
 }
 
+/// Cubes per block of [`range_candidates`]' first pass.
+const BLOCK: usize = 256;
+
+/// Appends the candidates of the cubes based at the vertices `cubes` to `out`, as
+/// [`cube_candidates`] over each in turn does. Per grid row, a first pass ORs the codes of
+/// every cube's corners over whole slices of its corner rows (straight-line code the compiler
+/// vectorises); only the cubes that pass it and are scanned are walked.
+fn range_candidates(
+    grid: &ScanGrid,
+    cubes: Range<usize>,
+    rows: &mut CornerRows,
+    out: &mut Candidates,
+) {
+    let codes = grid.codes();
+    let mask = pass_mask(grid.codim());
+    let all = grid.rows();
+    let mut any = [0u32; BLOCK];
+    let mut cube = cubes.start;
+    while cube < cubes.end {
+        rows.locate(grid, cube);
+        let row_end = rows.span.end.min(cubes.end);
+        if !rows.rows.is_empty() {
+            // The cubes whose corners all lie in their rows: u_0 in lo..hi.
+            let own = all[rows.own];
+            let (mut lo, mut hi) = (i64::MIN, i64::MAX);
+            for &r in &rows.rows {
+                lo = lo.max(all[r].start);
+                hi = hi.min(all[r].start + all[r].len as i64 - 1);
+            }
+            let index =
+                |u: i64| (own.offset as i64 + u - own.start).clamp(cube as i64, row_end as i64);
+            let (first, last) = (index(lo) as usize, index(hi) as usize);
+            for block in (first..last).step_by(BLOCK) {
+                let n = BLOCK.min(last - block);
+                let u = own.start + (block - own.offset) as i64;
+                any[..n].fill(0);
+                for &r in &rows.rows {
+                    let at = (all[r].offset as i64 + u - all[r].start) as usize;
+                    let c = &codes[at..at + n + 1];
+                    for i in 0..n {
+                        any[i] |= c[i] | c[i + 1];
+                    }
+                }
+                for (i, (&a, &base)) in any[..n].iter().zip(&codes[block..block + n]).enumerate() {
+                    if a & mask == mask && base & BASE != 0 {
+                        cube_candidates(grid, block + i, rows, out);
+                    }
+                }
+            }
+        }
+        cube = row_end;
+    }
+}
+
 /// The candidates of the cubes based at the vertices `cubes`, in order of base, then of
 /// (S_1, .., S_k); in parallel.
 pub fn candidates(grid: &ScanGrid, cubes: Range<usize>) -> Candidates {
@@ -247,9 +301,7 @@ pub fn candidates(grid: &ScanGrid, cubes: Range<usize>) -> Candidates {
         .map(|start| {
             let mut rows = CornerRows::default();
             let mut out = Candidates::default();
-            for cube in start..(start + chunk).min(end) {
-                cube_candidates(grid, cube, &mut rows, &mut out);
-            }
+            range_candidates(grid, start..(start + chunk).min(end), &mut rows, &mut out);
             out
         })
         .collect();
