@@ -158,6 +158,17 @@ impl ScanGrid {
         }
     }
 
+    /// Lattice coordinates of vertex `idx` into `out` (d of them), its row looked for from
+    /// row `*r` on (at or before it; left at it): for vertices in increasing order.
+    pub(crate) fn coords_from(&self, r: &mut usize, idx: usize, out: &mut [i32]) {
+        while self.rows[*r].offset + self.rows[*r].len as usize <= idx {
+            *r += 1;
+        }
+        let row = self.rows[*r];
+        self.row_coords(row.id, out);
+        out[0] = (row.start + (idx - row.offset) as i64) as i32;
+    }
+
     /// Lattice coordinates of vertex `idx` into `out` (d of them).
     pub fn coords(&self, idx: usize, out: &mut [i32]) {
         let r = self.row_of(idx);

@@ -275,14 +275,20 @@ fn marked_vertices<const W: usize>(
             })
         })
         .collect();
-    let key = |i: u32| -> Result<Key<W>> {
-        let mut v = [0i32; MAX_DIM];
-        grid.coords(i as usize, &mut v[..d]);
-        let mut key = [0u64; W];
-        ctx.codec.encode_vertex_w(&v[..d], &mut key)?;
-        Ok(key)
-    };
-    let mut keys: Vec<Key<W>> = marked.par_iter().map(|&i| key(i)).collect::<Result<_>>()?;
+    let mut keys = vec![[0u64; W]; marked.len()];
+    // Vertices in storage order: each piece finds its first row, then steps along.
+    marked
+        .par_chunks(4096)
+        .zip(keys.par_chunks_mut(4096))
+        .try_for_each(|(idx, keys)| -> Result<()> {
+            let mut r = grid.row_of(idx[0] as usize);
+            let mut v = [0i32; MAX_DIM];
+            for (&i, key) in idx.iter().zip(keys) {
+                grid.coords_from(&mut r, i as usize, &mut v[..d]);
+                ctx.codec.encode_vertex_w(&v[..d], key)?;
+            }
+            Ok(())
+        })?;
     // Storage order is key order for one-word keys (the last axis is the most significant).
     if !keys.windows(2).all(|w| w[0] < w[1]) {
         let mut order: Vec<(Key<W>, u32)> = keys.into_iter().zip(marked).collect();
@@ -347,9 +353,18 @@ fn decide_batch<const W: usize>(
             let lam = &lambda[i * (k + 1)..(i + 1) * (k + 1)];
             let mut point = [0.0; MAX_DIM];
             let mut v = [0i32; MAX_DIM];
+            grid.coords(row[0] as usize, &mut v[..d]);
+            // Vertex j is v0 + e_S for the corner set S = S_j (bit a: +1 on axis a).
             ctx.tri.barycentric_point(
                 lam,
-                |j, out| grid.coords(row[j] as usize, out),
+                |j, out| {
+                    out.copy_from_slice(&v[..d]);
+                    if j > 0 {
+                        for (a, u) in out.iter_mut().enumerate() {
+                            *u += (chain[j - 1] >> a & 1) as i32;
+                        }
+                    }
+                },
                 &mut point[..d],
             );
             if !ctx.domain.contains(&point[..d]) {
@@ -360,7 +375,6 @@ fn decide_batch<const W: usize>(
                     used[j as usize / 64].fetch_or(1 << (j % 64), Ordering::Relaxed);
                 }
             }
-            grid.coords(row[0] as usize, &mut v[..d]);
             chain_key(ctx, &v[..d], chain).map(|key| Some(found.hit(key, &point[..d])))
         })
         .collect();
