@@ -517,13 +517,16 @@ const BUCKET_PAIRS: usize = 1 << 15;
 /// map, in parallel.
 fn joins<const V: usize>(mut pieces: Vec<Vec<([u64; V], u32)>>) -> Vec<(u32, u32)> {
     let total: usize = pieces.iter().map(Vec::len).sum();
-    let bits = (total / BUCKET_PAIRS).max(1).ilog2().min(16);
+    // Each piece keeps a start per bucket, and each bucket visits every piece: at most a
+    // quarter as many (piece, bucket) as pairs.
+    let most = total / (4 * pieces.len()).max(1);
+    let bits = (total / BUCKET_PAIRS).min(most).max(1).ilog2().min(16);
     let buckets = 1usize << bits;
     // A hasher of its own: the maps' hashes must not be equal in their top bits.
     let split = foldhash::fast::FixedState::with_seed(0x5eed);
-    let bucket = |key: &[u64; V]| {
-        (std::hash::BuildHasher::hash_one(&split, key) >> (64 - bits.max(1))) as usize
-            & (buckets - 1)
+    let bucket = |key: &[u64; V]| match bits {
+        0 => 0,
+        _ => (std::hash::BuildHasher::hash_one(&split, key) >> (64 - bits)) as usize,
     };
     // Per piece, its pairs ordered by bucket, and where each bucket starts (buckets + 1).
     let starts: Vec<Vec<usize>> = pieces
