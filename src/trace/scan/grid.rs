@@ -238,7 +238,9 @@ fn near_rows(ctx: &TraceContext, near: &[[f64; 2]], device: bool) -> Result<Scan
     }
     let spans = row_spans(ctx.tri, near, &lo, &hi, &n);
     let total: usize = spans.iter().map(|s| s.2 as usize).sum();
-    let need = total as u64 * vertex_bytes(ctx, device) + spans.len() as u64 * 32;
+    // On the CPU, a bit per vertex also marks the vertices of S.
+    let marks = if device { 0 } else { total.div_ceil(8) as u64 };
+    let need = total as u64 * vertex_bytes(ctx, device) + marks + spans.len() as u64 * 32;
     if need > ctx.max_memory {
         return Err(Error::Trace(format!(
             "the exhaustive scan of this box needs {total} lattice vertices, about {}, over \
