@@ -16,8 +16,12 @@ use crate::trace::region::lattice_bounds;
 use crate::trace::TraceContext;
 use crate::triangulation::{Triangulation, MAX_DIM};
 
-/// Vertices per evaluation slab.
-const SLAB: usize = 1 << 16;
+/// Vertices per evaluation step (between checks for Ctrl-C).
+const EVAL_STEP: usize = 1 << 16;
+/// Vertices a slab's own rows hold at least (the last slab's may hold fewer), for
+/// [`Slabs::new`]: a window's values and codes then stay within the cache while it is
+/// scanned.
+pub(crate) const SLAB_VERTICES: usize = 1 << 20;
 /// Vertices per parallel work item when listing a slab's coordinates.
 const FILL: usize = 1 << 12;
 
@@ -85,11 +89,6 @@ impl ScanGrid {
     /// on the vertices whose cube is scanned).
     pub fn codes(&self) -> &[u32] {
         &self.codes
-    }
-
-    /// Bytes of f's values, their bounds and the sign codes held.
-    pub(crate) fn bytes(&self) -> u64 {
-        (self.values.capacity() * 8 + self.bounds.capacity() * 8 + self.codes.capacity() * 4) as u64
     }
 
     /// The rows, sorted by id.
@@ -550,7 +549,26 @@ fn build_with(
     bbox: &[[f64; 2]],
     device: Option<&dyn crate::trace::DeviceValues>,
 ) -> Result<ScanGrid> {
-    let (d, k) = (ctx.d, ctx.k);
+    let (mut grid, near_base) = plan_rows(ctx, bbox, device.is_some())?;
+    let (total, k) = (grid.total, ctx.k);
+    grid.values = vec![0.0; total * k];
+    if device.is_some() {
+        grid.bounds = vec![0.0; total * k];
+    }
+    grid.codes = vec![0; total];
+    evaluate(ctx, &mut grid, 0..total, device)?;
+    mark_bases(ctx.tri, &mut grid, &near_base);
+    Ok(grid)
+}
+
+/// The rows of the scan's grid for `bbox` (vertices within two edges of it; no values yet),
+/// and the box grown by an edge (where the scanned cubes are based).
+fn plan_rows(
+    ctx: &TraceContext,
+    bbox: &[[f64; 2]],
+    device: bool,
+) -> Result<(ScanGrid, Vec<[f64; 2]>)> {
+    let d = ctx.d;
     if d > MAX_SCAN_DIM {
         return Err(Error::Trace(format!(
             "the exhaustive scan handles d <= {MAX_SCAN_DIM} (d = {d}); trace from seeds instead"
@@ -559,12 +577,7 @@ fn build_with(
     let edge = ctx.tri.edge();
     let grown =
         |r: f64| -> Vec<[f64; 2]> { bbox.iter().map(|[lo, hi]| [lo - r, hi + r]).collect() };
-    let near_base = grown(edge);
-    let mut grid = near_rows(
-        ctx,
-        &grown(2.0 * edge + 1e-9 * (1.0 + edge)),
-        device.is_some(),
-    )?;
+    let grid = near_rows(ctx, &grown(2.0 * edge + 1e-9 * (1.0 + edge)), device)?;
     let total = grid.total;
     if total >= u32::MAX as usize {
         return Err(Error::Trace(format!(
@@ -572,15 +585,22 @@ fn build_with(
              smaller box or a larger edge"
         )));
     }
-    grid.values = vec![0.0; total * k];
-    if device.is_some() {
-        grid.bounds = vec![0.0; total * k];
-    }
-    grid.codes = vec![0; total];
+    Ok((grid, grown(edge)))
+}
+
+/// f (through the oracle, or certified values from `device`) and the sign codes at the
+/// vertices `range` of `grid`, whose arrays already have room for them.
+fn evaluate(
+    ctx: &TraceContext,
+    grid: &mut ScanGrid,
+    range: Range<usize>,
+    device: Option<&dyn crate::trace::DeviceValues>,
+) -> Result<()> {
+    let (d, k) = (ctx.d, ctx.k);
     let mut pairs = Vec::new();
-    for start in (0..total).step_by(SLAB) {
+    for start in range.clone().step_by(EVAL_STEP) {
         super::cancelled(ctx)?;
-        let end = (start + SLAB).min(total);
+        let end = (start + EVAL_STEP).min(range.end);
         let mut lattice = vec![0i32; (end - start) * d];
         lattice
             .par_chunks_mut(FILL * d)
@@ -613,8 +633,149 @@ fn build_with(
                 .for_each(|(code, f)| *code = sign_code(f));
         }
     }
-    mark_bases(ctx.tri, &mut grid, &near_base);
-    Ok(grid)
+    Ok(())
+}
+
+/// The scan's grid in slabs along the top lattice axis, with the CPU's values: each slab's
+/// window holds its own rows (whole layers of equal top coordinate, at least a given number
+/// of vertices) and the next layer, whose vertices are corners of its top
+/// cubes. Only the cubes based in a slab's own rows are scanned in it, so every cube is
+/// scanned once, and f is evaluated once per vertex: the next window starts with the layer
+/// the last one ended with, copied. Memory holds one window, not the grid.
+pub(crate) struct Slabs<'c, 'a> {
+    ctx: &'c TraceContext<'a>,
+    /// Every row (no values).
+    whole: ScanGrid,
+    /// The box grown by an edge: where the scanned cubes are based.
+    near_base: Vec<[f64; 2]>,
+    /// Per slab: its first row, the end of its own rows, the end of its window's rows.
+    plan: Vec<(usize, usize, usize)>,
+}
+
+/// A slab's window, evaluated: a grid of its own (vertex indices from the slab's first
+/// vertex), whose first `own` vertices are the slab's own, and at how many of its vertices
+/// f was evaluated (the others were the last window's).
+pub(crate) struct Window {
+    pub grid: ScanGrid,
+    pub own: usize,
+    pub evaluated: usize,
+}
+
+impl<'c, 'a> Slabs<'c, 'a> {
+    /// The slabs of the scan of `bbox`, each holding at least `vertices` (but the last).
+    pub(crate) fn new(
+        ctx: &'c TraceContext<'a>,
+        bbox: &[[f64; 2]],
+        vertices: usize,
+    ) -> Result<Self> {
+        let (whole, near_base) = plan_rows(ctx, bbox, false)?;
+        let rows = &whole.rows;
+        let d = whole.dim();
+        let layer_stride = if d >= 2 {
+            whole.stride(d - 1)
+        } else {
+            usize::MAX
+        };
+        let top = |r: usize| rows[r].id.checked_div(layer_stride).unwrap_or(0);
+        let layer_end = |mut r: usize| {
+            let t = top(r);
+            while r < rows.len() && top(r) == t {
+                r += 1;
+            }
+            r
+        };
+        let mut plan = Vec::new();
+        let mut a = 0;
+        while a < rows.len() {
+            let mut b = layer_end(a);
+            while b < rows.len() && rows[b].offset - rows[a].offset < vertices {
+                b = layer_end(b);
+            }
+            let c = if b < rows.len() && top(b) == top(b - 1) + 1 {
+                layer_end(b)
+            } else {
+                b
+            };
+            plan.push((a, b, c));
+            a = b;
+        }
+        Ok(Slabs {
+            ctx,
+            whole,
+            near_base,
+            plan,
+        })
+    }
+
+    /// How many slabs there are.
+    pub(crate) fn len(&self) -> usize {
+        self.plan.len()
+    }
+
+    /// Lattice vertices of the whole grid.
+    pub(crate) fn vertices(&self) -> usize {
+        self.whole.total
+    }
+
+    /// The storage offset of row `r` of the whole grid (its total past the last row).
+    fn offset(&self, r: usize) -> usize {
+        self.whole
+            .rows
+            .get(r)
+            .map_or(self.whole.total, |row| row.offset)
+    }
+
+    /// Slab `i`'s window, evaluated. `prev` is slab i - 1's window, whose buffers it reuses
+    /// and whose last layer (its first) it copies instead of evaluating f there again.
+    /// Interrupted (Ctrl-C) while f is evaluated, an error.
+    pub(crate) fn window(&self, i: usize, prev: Option<Window>) -> Result<Window> {
+        let (a, b, c) = self.plan[i];
+        let base = self.offset(a);
+        let (len, own) = (self.offset(c) - base, self.offset(b) - base);
+        let k = self.whole.k;
+        let (mut values, mut codes, kept) = match prev {
+            Some(Window {
+                grid, own: last, ..
+            }) => {
+                let (mut values, mut codes) = (grid.values, grid.codes);
+                // Slab i - 1's window ends with slab i's first layer, or with its own rows.
+                let kept = if self.plan[i - 1].2 > a {
+                    values.copy_within(last * k.., 0);
+                    codes.copy_within(last.., 0);
+                    grid.total - last
+                } else {
+                    0
+                };
+                (values, codes, kept)
+            }
+            None => (Vec::new(), Vec::new(), 0),
+        };
+        values.resize(len * k, 0.0);
+        codes.resize(len, 0);
+        let mut grid = ScanGrid {
+            lo: self.whole.lo.clone(),
+            n: self.whole.n.clone(),
+            rows: self.whole.rows[a..c]
+                .iter()
+                .map(|row| Row {
+                    offset: row.offset - base,
+                    ..*row
+                })
+                .collect(),
+            total: len,
+            k,
+            values,
+            bounds: Vec::new(),
+            codes,
+        };
+        evaluate(self.ctx, &mut grid, kept..len, None)?;
+        mark_bases(self.ctx.tri, &mut grid, &self.near_base);
+        Ok(Window {
+            grid,
+            own,
+            evaluated: len - kept,
+        })
+    }
 }
 
 /// A power of ten to print: `log10` rounded, "more than 308" past f64's range.

@@ -33,6 +33,7 @@ use super::{
 use crate::cpu::solve::Status;
 use crate::error::{Error, Result};
 use crate::triangulation::{Simplex, MAX_DIM};
+use std::ops::Range;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::Instant;
 
@@ -56,7 +57,6 @@ pub(crate) struct Scanned<const W: usize> {
     pub stats: TraceStats,
     pub cpu_values: Option<(Vec<i32>, Vec<f64>)>,
     pub vertices: Option<(Vec<Key<W>>, Vec<f64>)>,
-    pub grid_bytes: u64,
 }
 
 /// A crossed simplex a scan found: its key, and whether its point is near the domain's
@@ -115,7 +115,6 @@ impl<'a, const W: usize> Found<'a, W> {
             stats,
             cpu_values,
             vertices: None,
-            grid_bytes: 0,
         })
     }
 }
@@ -163,12 +162,77 @@ impl<'a> Border<'a> {
 /// Scans the box. Interrupted (Ctrl-C) between batches, it returns what it found so far,
 /// with `stopped` set.
 pub(crate) fn scan<const W: usize>(ctx: &TraceContext, bbox: &[[f64; 2]]) -> Result<Scanned<W>> {
-    if let Some(device) = ctx.oracle.scans().device_values() {
-        if ctx.d <= MAX_TILED_DIM {
-            return tiles::scan(ctx, bbox, device);
-        }
+    match ctx.oracle.scans().device_values() {
+        Some(device) if ctx.d <= MAX_TILED_DIM => tiles::scan(ctx, bbox, device),
+        Some(device) => scan_with_device_values(ctx, bbox, device),
+        None => scan_slabs(ctx, bbox, grid::SLAB_VERTICES),
     }
+}
+
+/// Candidates, then decisions, batch after batch over the cubes `cubes` of `grid`, in
+/// order: about TARGET_CANDIDATES candidates per batch at this density, the batch size
+/// carried in `size` from call to call. The candidates of the next batch are generated
+/// while this one is decided: on a GPU, the scan shader runs while the host settles the
+/// solve shader's verdicts. Returns false when Ctrl-C stopped it.
+#[allow(clippy::too_many_arguments)]
+fn scan_cubes<const W: usize>(
+    ctx: &TraceContext,
+    grid: &ScanGrid,
+    cubes: Range<usize>,
+    size: &mut usize,
+    mut cpu_values: Option<&mut device_values::CpuValues<'_>>,
+    used: Option<&[AtomicU64]>,
+    stats: &mut TraceStats,
+    found: &mut Found<W>,
+) -> Result<bool> {
     let k = ctx.k;
+    let end = cubes.end;
+    let mut cubes = cubes.start..(cubes.start + *size).min(end);
+    let mut batch = if cubes.is_empty() {
+        None
+    } else {
+        Some(ctx.oracle.scans().candidates(grid, cubes.clone())?)
+    };
+    while let Some(cands) = batch.take() {
+        // Ctrl-C: what the batches so far found is kept.
+        if ctx.interrupted() {
+            stats.stopped = Some(StopReason::Interrupted);
+            return Ok(false);
+        }
+        let m = cands.rows.len() / (k + 1);
+        *size = (cubes.len() as u128 * TARGET_CANDIDATES as u128 / m.max(1) as u128)
+            .clamp(BATCH_RANGE.0 as u128, BATCH_RANGE.1 as u128) as usize;
+        cubes = cubes.end..(cubes.end + *size).min(end);
+        let next = cubes.clone();
+        // rayon::join, not an OS thread: the scan may run inside a rayon pool, whose workers
+        // must keep taking work while they wait (a worker blocked on a thread join starves
+        // the pool). No lock is held across either side (see `GpuOracle`'s buffer pools).
+        let (ahead, decided) = rayon::join(
+            || (!next.is_empty()).then(|| ctx.oracle.scans().candidates(grid, next)),
+            || {
+                decide_batch(
+                    ctx,
+                    grid,
+                    &cands,
+                    cpu_values.as_deref_mut(),
+                    used,
+                    stats,
+                    found,
+                )
+            },
+        );
+        decided?;
+        batch = ahead.transpose()?;
+    }
+    Ok(true)
+}
+
+/// The scan with f's values from the device, over the whole grid at once.
+fn scan_with_device_values<const W: usize>(
+    ctx: &TraceContext,
+    bbox: &[[f64; 2]],
+    device: &dyn crate::trace::DeviceValues,
+) -> Result<Scanned<W>> {
     let grid = match grid::build(ctx, bbox) {
         // Interrupted while f is evaluated on the grid: nothing found yet, kept as such.
         Err(_) if ctx.interrupted() => {
@@ -180,106 +244,183 @@ pub(crate) fn scan<const W: usize>(ctx: &TraceContext, bbox: &[[f64; 2]]) -> Res
         }
         g => g?,
     };
-    let device = ctx.oracle.scans().device_values();
-    let on_device = device.is_some();
-    let mut cpu_values = device.map(device_values::CpuValues::new);
+    let mut cpu_values = device_values::CpuValues::new(device);
     let mut stats = TraceStats {
         vertices: grid.len() as u64,
-        device_vertex_evaluations: if on_device { grid.len() as u64 } else { 0 },
-        cpu_vertex_evaluations: if on_device { 0 } else { grid.len() as u64 },
+        device_vertex_evaluations: grid.len() as u64,
         ..TraceStats::default()
     };
     let mut found = Found::new(ctx);
-    // The grid vertices of S, one bit each: f's values there are kept for the sample.
-    let used: Option<Vec<AtomicU64>> = (!on_device).then(|| {
-        (0..grid.len().div_ceil(64))
-            .map(|_| AtomicU64::new(0))
-            .collect()
-    });
-    // The candidates of the next batch are generated while this one is decided: on a GPU,
-    // the scan shader runs while the host settles the solve shader's verdicts.
-    let mut cubes = 0..BATCH_RANGE.0.min(grid.len());
-    let mut batch = if cubes.is_empty() {
-        None
-    } else {
-        Some(ctx.oracle.scans().candidates(&grid, cubes.clone())?)
-    };
-    while let Some(cands) = batch.take() {
-        // Ctrl-C: what the batches so far found is kept.
-        if ctx.interrupted() {
-            stats.stopped = Some(StopReason::Interrupted);
-            break;
-        }
-        // The next batch: about TARGET_CANDIDATES at this density (the same on every backend).
-        let m = cands.rows.len() / (k + 1);
-        let size = (cubes.len() as u128 * TARGET_CANDIDATES as u128 / m.max(1) as u128)
-            .clamp(BATCH_RANGE.0 as u128, BATCH_RANGE.1 as u128) as usize;
-        cubes = cubes.end..(cubes.end + size).min(grid.len());
-        let next = cubes.clone();
-        let grid = &grid;
-        // rayon::join, not an OS thread: the scan may run inside a rayon pool, whose workers
-        // must keep taking work while they wait (a worker blocked on a thread join starves
-        // the pool). No lock is held across either side (see `GpuOracle`'s buffer pools).
-        let (ahead, decided) = rayon::join(
-            || (!next.is_empty()).then(|| ctx.oracle.scans().candidates(grid, next)),
-            || {
-                decide_batch(
-                    ctx,
-                    grid,
-                    &cands,
-                    cpu_values.as_mut(),
-                    used.as_deref(),
-                    &mut stats,
-                    &mut found,
-                )
-            },
-        );
-        decided?;
-        batch = ahead.transpose()?;
-    }
+    let mut size = BATCH_RANGE.0;
+    scan_cubes(
+        ctx,
+        &grid,
+        0..grid.len(),
+        &mut size,
+        Some(&mut cpu_values),
+        None,
+        &mut stats,
+        &mut found,
+    )?;
     // Nothing found: say whether f was NaN or infinite on the grid (such vertices have no
     // sign, so no candidate counted them).
     if found.is_empty() && stats.non_finite == 0 {
-        stats.non_finite = grid.values().par_iter().filter(|v| !v.is_finite()).count() as u64;
+        stats.non_finite = non_finite(grid.values());
     }
-    let cpu_values = cpu_values.map(|c| c.into_lattice(&grid));
-    let vertices = used.map(|u| marked_vertices(ctx, &grid, &u)).transpose()?;
-    let grid_bytes = grid.bytes();
+    let cpu_values = cpu_values.into_lattice(&grid);
     // S's table is built without the grid alive.
     drop(grid);
-    let mut scanned = found.into_scanned(stats, cpu_values)?;
-    scanned.vertices = vertices;
-    scanned.grid_bytes = grid_bytes;
+    found.into_scanned(stats, Some(cpu_values))
+}
+
+/// Values of f that are NaN or infinite.
+fn non_finite(values: &[f64]) -> u64 {
+    values.par_iter().filter(|v| !v.is_finite()).count() as u64
+}
+
+/// The scan with the CPU's values, a slab of the grid at a time ([`grid::Slabs`], at least
+/// `slab` vertices each): the vertices of S and f's values there are kept from each slab as
+/// it is left.
+fn scan_slabs<const W: usize>(
+    ctx: &TraceContext,
+    bbox: &[[f64; 2]],
+    slab: usize,
+) -> Result<Scanned<W>> {
+    let slabs = grid::Slabs::new(ctx, bbox, slab)?;
+    let mut stats = TraceStats {
+        vertices: slabs.vertices() as u64,
+        ..TraceStats::default()
+    };
+    let mut found = Found::new(ctx);
+    let mut size = BATCH_RANGE.0;
+    let (mut keys, mut values) = (Vec::new(), Vec::new());
+    // Vertices of the last window's next layer (the next window's first) that S uses.
+    let mut carried: Vec<u32> = Vec::new();
+    let mut grid_non_finite = 0;
+    let mut window = None;
+    for i in 0..slabs.len() {
+        let grid::Window {
+            grid,
+            own,
+            evaluated,
+        } = match slabs.window(i, window.take()) {
+            // Interrupted while f is evaluated: what the slabs so far found is kept.
+            Err(_) if ctx.interrupted() => {
+                stats.stopped = Some(StopReason::Interrupted);
+                break;
+            }
+            w => w?,
+        };
+        stats.cpu_vertex_evaluations += evaluated as u64;
+        // The grid vertices of S, one bit each: f's values there are kept for the sample.
+        let used: Vec<AtomicU64> = (0..grid.len().div_ceil(64))
+            .map(|_| AtomicU64::new(0))
+            .collect();
+        for &j in &carried {
+            used[j as usize / 64].fetch_or(1 << (j % 64), Ordering::Relaxed);
+        }
+        let whole = scan_cubes(
+            ctx,
+            &grid,
+            0..own,
+            &mut size,
+            None,
+            Some(&used),
+            &mut stats,
+            &mut found,
+        )?;
+        if found.is_empty() {
+            grid_non_finite += non_finite(&grid.values()[..own * ctx.k]);
+        }
+        // Stopped, S may use any vertex of the window; else the next one keeps the rest.
+        let kept = if whole { own } else { grid.len() };
+        marked_vertices(ctx, &grid, &used, 0..kept, &mut keys, &mut values)?;
+        carried = marked(&used, kept..grid.len())
+            .map(|j| j - kept as u32)
+            .collect();
+        window = Some(grid::Window {
+            grid,
+            own,
+            evaluated,
+        });
+        if !whole {
+            break;
+        }
+    }
+    drop(window);
+    // Nothing found: say whether f was NaN or infinite on the grid (such vertices have no
+    // sign, so no candidate counted them).
+    if found.is_empty() && stats.non_finite == 0 {
+        stats.non_finite = grid_non_finite;
+    }
+    // Storage order is key order for one-word keys (the last axis is the most significant).
+    if !keys.windows(2).all(|w| w[0] < w[1]) {
+        let k = ctx.k;
+        let mut order: Vec<(Key<W>, u32)> = keys.into_iter().zip(0..).collect();
+        order.par_sort_unstable();
+        values = order
+            .iter()
+            .flat_map(|&(_, i)| &values[i as usize * k..(i as usize + 1) * k])
+            .copied()
+            .collect();
+        keys = order.into_iter().map(|(key, _)| key).collect();
+    }
+    let mut scanned = found.into_scanned(stats, None)?;
+    scanned.vertices = Some((keys, values));
     Ok(scanned)
 }
 
-/// The grid vertices whose bit is set in `used` (one per vertex, in storage order): their
-/// keys, sorted, and f's values there (rows of k).
+/// The indices in `range` whose bit is set in `used` (one per vertex), in order.
+fn marked(used: &[AtomicU64], range: Range<usize>) -> impl Iterator<Item = u32> + '_ {
+    let (lo, hi) = (range.start, range.end);
+    (lo / 64..hi.div_ceil(64)).flat_map(move |w| {
+        // The word's bits within the range.
+        let mut bits = used[w].load(Ordering::Relaxed);
+        if w * 64 < lo {
+            bits &= !0 << (lo - w * 64);
+        }
+        if (w + 1) * 64 > hi {
+            bits &= !(!0 << (hi - w * 64));
+        }
+        std::iter::from_fn(move || {
+            (bits != 0).then(|| {
+                let b = bits.trailing_zeros();
+                bits &= bits - 1;
+                (w * 64) as u32 + b
+            })
+        })
+    })
+}
+
+/// Appends the grid vertices in `range` whose bit is set in `used` (one per vertex, in
+/// storage order) to `keys`, in storage order, and f's values there (rows of k) to
+/// `values`.
 fn marked_vertices<const W: usize>(
     ctx: &TraceContext,
     grid: &ScanGrid,
     used: &[AtomicU64],
-) -> Result<(Vec<Key<W>>, Vec<f64>)> {
+    range: Range<usize>,
+    keys: &mut Vec<Key<W>>,
+    values: &mut Vec<f64>,
+) -> Result<()> {
     let (d, k) = (grid.dim(), grid.codim());
-    let mut marked: Vec<u32> = used
-        .par_iter()
-        .enumerate()
-        .flat_map_iter(|(w, bits)| {
-            let mut bits = bits.load(Ordering::Relaxed);
-            std::iter::from_fn(move || {
-                (bits != 0).then(|| {
-                    let b = bits.trailing_zeros();
-                    bits &= bits - 1;
-                    (w * 64) as u32 + b
-                })
-            })
+    let words = range.start / 64..range.end.div_ceil(64);
+    let marked: Vec<u32> = words
+        .into_par_iter()
+        .step_by(64)
+        .flat_map_iter(|w| {
+            marked(
+                used,
+                (w * 64).max(range.start)..((w + 64) * 64).min(range.end),
+            )
         })
         .collect();
-    let mut keys = vec![[0u64; W]; marked.len()];
+    let from = keys.len();
+    keys.resize(from + marked.len(), [0u64; W]);
     // Vertices in storage order: each piece finds its first row, then steps along.
     marked
         .par_chunks(4096)
-        .zip(keys.par_chunks_mut(4096))
+        .zip(keys[from..].par_chunks_mut(4096))
         .try_for_each(|(idx, keys)| -> Result<()> {
             let mut r = grid.row_of(idx[0] as usize);
             let mut v = [0i32; MAX_DIM];
@@ -289,19 +430,13 @@ fn marked_vertices<const W: usize>(
             }
             Ok(())
         })?;
-    // Storage order is key order for one-word keys (the last axis is the most significant).
-    if !keys.windows(2).all(|w| w[0] < w[1]) {
-        let mut order: Vec<(Key<W>, u32)> = keys.into_iter().zip(marked).collect();
-        order.par_sort_unstable();
-        (keys, marked) = order.into_iter().unzip();
-    }
-    let values = grid.values();
-    let values = marked
-        .iter()
-        .flat_map(|&i| &values[i as usize * k..(i as usize + 1) * k])
-        .copied()
-        .collect();
-    Ok((keys, values))
+    let at = grid.values();
+    values.extend(
+        marked
+            .iter()
+            .flat_map(|&i| &at[i as usize * k..(i as usize + 1) * k]),
+    );
+    Ok(())
 }
 
 /// Decides the candidates `cands` of the grid (of device values where `cpu_values` is
@@ -627,16 +762,11 @@ fn exhaustive_with<const W: usize>(ctx: TraceContext) -> Result<Sample> {
     let bbox = ctx.domain.bbox.expect("checked by exhaustive()");
     let codec = ctx.codec;
     let scanned = scan::<W>(&ctx, bbox)?;
-    // For the cofaces at once: what the grid held (it is gone), at least 256 MiB, at most a
-    // quarter of the memory left, and never under 16 MiB.
+    // For the cofaces at once: an eighth of the memory left, and never under 16 MiB.
     let room = ctx
         .max_memory
         .saturating_sub(crate::memory::in_use(scanned.table.memory_bytes()));
-    let budget = scanned
-        .grid_bytes
-        .max(256 << 20)
-        .min(room / 4)
-        .max(16 << 20);
+    let budget = (room / 8).max(16 << 20);
     let components = count_components(&codec, &scanned.table, budget)?;
     let mut engine: Engine<W> = Engine::new(ctx);
     engine.s = scanned.table;
@@ -697,6 +827,62 @@ mod tests {
         }
         assert_eq!(got, want);
         assert!(want > 50_000 && want < 70_000, "{want}");
+    }
+
+    /// A scan in many slabs finds what one window over the whole grid finds: the same S,
+    /// border, vertices of S and values there, bit for bit, and evaluates f once per vertex.
+    #[test]
+    fn slabs_scan_as_one_window() {
+        type Case<'a> = (&'a str, &'a [(&'a str, f64)], [[f64; 2]; 3]);
+        let cases: [Case; 2] = [
+            (
+                "torus",
+                &[("edge", 0.04)],
+                [[-1.5, 1.5], [-1.5, 0.9], [-0.5, 0.5]],
+            ),
+            // k = 2: a circle, its box cut so that some slabs hold none of it.
+            (
+                "sphere",
+                &[("m", 1.0), ("d", 3.0), ("edge", 0.015)],
+                [[-0.5, 1.5], [-2.0, 2.0], [-1.0, 1.0]],
+            ),
+        ];
+        for (name, params, bbox) in cases {
+            let params: Vec<(String, f64)> =
+                params.iter().map(|(n, v)| (n.to_string(), *v)).collect();
+            let p = preset(name, &params).unwrap();
+            let tri = p.triangulation.build(p.dim()).unwrap();
+            let oracle = CpuOracle::new(&p.system);
+            let opts = TraceOptions {
+                bbox: Some(bbox.to_vec()),
+                ..TraceOptions::default()
+            };
+            let ctx = context(&p.system, &tri, &oracle, &opts).unwrap();
+            let one: Scanned<1> = scan_slabs(&ctx, &bbox, usize::MAX).unwrap();
+            assert_eq!(grid::Slabs::new(&ctx, &bbox, usize::MAX).unwrap().len(), 1);
+            assert!(one.table.len() > 1000, "{name}: {}", one.table.len());
+            for slab in [1, 5000] {
+                let count = grid::Slabs::new(&ctx, &bbox, slab).unwrap().len();
+                assert!(count > 10, "{name}: {count} slabs of {slab}");
+                let many: Scanned<1> = scan_slabs(&ctx, &bbox, slab).unwrap();
+                let keys = |s: &Scanned<1>| {
+                    (0..s.table.len())
+                        .map(|i| *s.table.key(i))
+                        .collect::<Vec<_>>()
+                };
+                assert_eq!(keys(&many), keys(&one), "{name}, slabs of {slab}");
+                assert_eq!(many.border, one.border, "{name}, slabs of {slab}");
+                let bits = |s: &Scanned<1>| {
+                    let (keys, values) = s.vertices.as_ref().unwrap();
+                    let bits: Vec<u64> = values.iter().map(|v| v.to_bits()).collect();
+                    (keys.clone(), bits)
+                };
+                assert_eq!(bits(&many), bits(&one), "{name}, slabs of {slab}");
+                assert_eq!(many.stats.vertices, one.stats.vertices);
+                assert_eq!(many.stats.cpu_vertex_evaluations, one.stats.vertices);
+                assert_eq!(many.stats.oracle_calls, one.stats.oracle_calls);
+            }
+        }
     }
 
     /// Components counted through shared cofaces, against the known count of pieces a box
