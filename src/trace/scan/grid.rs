@@ -133,12 +133,28 @@ impl ScanGrid {
 
     /// Lattice coordinates of the vertices `range` into `out` (d each), row by row.
     fn fill_coords(&self, range: Range<usize>, out: &mut [i32]) {
+        // Rows of a fixed length copy as a few moves (a slice of d calls memcpy).
+        match self.dim() {
+            1 => self.fill_coords_of::<1>(range, out),
+            2 => self.fill_coords_of::<2>(range, out),
+            3 => self.fill_coords_of::<3>(range, out),
+            4 => self.fill_coords_of::<4>(range, out),
+            5 => self.fill_coords_of::<5>(range, out),
+            6 => self.fill_coords_of::<6>(range, out),
+            7 => self.fill_coords_of::<7>(range, out),
+            8 => self.fill_coords_of::<8>(range, out),
+            _ => self.fill_coords_of::<MAX_DIM>(range, out),
+        }
+    }
+
+    /// [`ScanGrid::fill_coords`] for d <= N.
+    fn fill_coords_of<const N: usize>(&self, range: Range<usize>, out: &mut [i32]) {
         let d = self.dim();
         if range.is_empty() {
             return;
         }
         let mut r = self.row_of(range.start);
-        let mut v = [0i32; MAX_DIM];
+        let mut v = [0i32; N];
         let mut idx = range.start;
         let mut slots = out.chunks_exact_mut(d);
         while idx < range.end {
@@ -147,10 +163,13 @@ impl ScanGrid {
             let end = (row.offset + row.len as usize).min(range.end);
             for i in idx..end {
                 v[0] = (row.start + (i - row.offset) as i64) as i32;
-                slots
-                    .next()
-                    .expect("d coordinates per vertex")
-                    .copy_from_slice(&v[..d]);
+                let slot = slots.next().expect("d coordinates per vertex");
+                if N == d {
+                    let slot: &mut [i32; N] = slot.try_into().expect("N coordinates");
+                    *slot = v;
+                } else {
+                    slot.copy_from_slice(&v[..d]);
+                }
             }
             idx = end;
             r += 1;
