@@ -43,6 +43,14 @@ pub struct ScanGrid {
     codes: Vec<u32>,
 }
 
+/// The row [`ScanGrid::coords_at`] found last, and its coordinates on axes 1..d-1.
+#[derive(Default)]
+pub(crate) struct RowCursor {
+    valid: bool,
+    row: usize,
+    coords: [i32; MAX_SCAN_DIM],
+}
+
 /// One row of a [`ScanGrid`].
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct Row {
@@ -184,6 +192,30 @@ impl ScanGrid {
         }
         let row = self.rows[*r];
         self.row_coords(row.id, out);
+        out[0] = (row.start + (idx - row.offset) as i64) as i32;
+    }
+
+    /// Lattice coordinates of vertex `idx` into `out` (d of them), through `at`: fastest
+    /// for vertices in increasing order (the row held or the next one is looked at before
+    /// any search, and a row's coordinates are computed once).
+    pub(crate) fn coords_at(&self, at: &mut RowCursor, idx: usize, out: &mut [i32]) {
+        let d = self.dim();
+        let holds = |r: usize| {
+            self.rows
+                .get(r)
+                .is_some_and(|row| (row.offset..row.offset + row.len as usize).contains(&idx))
+        };
+        if !(at.valid && holds(at.row)) {
+            at.row = if at.valid && holds(at.row + 1) {
+                at.row + 1
+            } else {
+                self.row_of(idx)
+            };
+            at.valid = true;
+            self.row_coords(self.rows[at.row].id, &mut at.coords[..d]);
+        }
+        let row = self.rows[at.row];
+        out[1..d].copy_from_slice(&at.coords[1..d]);
         out[0] = (row.start + (idx - row.offset) as i64) as i32;
     }
 

@@ -479,38 +479,47 @@ fn decide_batch<const W: usize>(
             },
         );
     }
-    let hits: Vec<Result<Option<Hit<W>>>> = (0..m)
+    // Candidates come in order of base: each piece walks the grid's rows along.
+    const PIECE: usize = 1024;
+    let (status, lambda) = (&status, &lambda);
+    let hits: Vec<Result<Option<Hit<W>>>> = (0..m.div_ceil(PIECE))
         .into_par_iter()
-        .filter(|&i| status[i].crossed())
-        .map(|i| {
-            let row = &rows[i * (k + 1)..(i + 1) * (k + 1)];
-            let chain = &chains[i * k..(i + 1) * k];
-            let lam = &lambda[i * (k + 1)..(i + 1) * (k + 1)];
-            let mut point = [0.0; MAX_DIM];
-            let mut v = [0i32; MAX_DIM];
-            grid.coords(row[0] as usize, &mut v[..d]);
-            // Vertex j is v0 + e_S for the corner set S = S_j (bit a: +1 on axis a).
-            ctx.tri.barycentric_point(
-                lam,
-                |j, out| {
-                    out.copy_from_slice(&v[..d]);
-                    if j > 0 {
-                        for (a, u) in out.iter_mut().enumerate() {
-                            *u += (chain[j - 1] >> a & 1) as i32;
+        .flat_map_iter(|c| {
+            let mut at = grid::RowCursor::default();
+            let found = &*found;
+            (c * PIECE..((c + 1) * PIECE).min(m))
+                .filter(|&i| status[i].crossed())
+                .map(move |i| {
+                    let row = &rows[i * (k + 1)..(i + 1) * (k + 1)];
+                    let chain = &chains[i * k..(i + 1) * k];
+                    let lam = &lambda[i * (k + 1)..(i + 1) * (k + 1)];
+                    let mut point = [0.0; MAX_DIM];
+                    let mut v = [0i32; MAX_DIM];
+                    grid.coords_at(&mut at, row[0] as usize, &mut v[..d]);
+                    // Vertex j is v0 + e_S for the corner set S = S_j (bit a: +1 on axis a).
+                    ctx.tri.barycentric_point(
+                        lam,
+                        |j, out| {
+                            out.copy_from_slice(&v[..d]);
+                            if j > 0 {
+                                for (a, u) in out.iter_mut().enumerate() {
+                                    *u += (chain[j - 1] >> a & 1) as i32;
+                                }
+                            }
+                        },
+                        &mut point[..d],
+                    );
+                    if !ctx.domain.contains(&point[..d]) {
+                        return Ok(None);
+                    }
+                    if let Some(used) = used {
+                        for &j in row {
+                            used[j as usize / 64].fetch_or(1 << (j % 64), Ordering::Relaxed);
                         }
                     }
-                },
-                &mut point[..d],
-            );
-            if !ctx.domain.contains(&point[..d]) {
-                return Ok(None);
-            }
-            if let Some(used) = used {
-                for &j in row {
-                    used[j as usize / 64].fetch_or(1 << (j % 64), Ordering::Relaxed);
-                }
-            }
-            chain_key(ctx, &v[..d], chain).map(|key| Some(found.hit(key, &point[..d])))
+                    chain_key(ctx, &v[..d], chain).map(|key| Some(found.hit(key, &point[..d])))
+                })
+                .collect::<Vec<_>>()
         })
         .collect();
     for h in hits {
