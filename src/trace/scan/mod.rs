@@ -629,7 +629,9 @@ fn join_cofaces<'s, const V: usize>(
                         s.for_each_cofacet(|tau| {
                             // A coface past the coordinate range joins nothing (none of S
                             // is there).
-                            if cofaces.encode(tau, &mut coface).is_ok()
+                            if cofaces
+                                .encode_masks_w(tau.base(), tau.parts(), &mut coface)
+                                .is_ok()
                                 && (passes == 1
                                     || std::hash::BuildHasher::hash_one(&hasher, coface) % passes
                                         == pass)
