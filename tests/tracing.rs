@@ -588,6 +588,44 @@ impl Decide for StopWhileEvaluating<'_> {
 }
 
 #[test]
+fn a_scan_stopped_while_it_evaluates_f_keeps_what_it_found() {
+    // About five million lattice vertices, evaluated in slabs of about a million: the stop
+    // comes while a later slab's f is evaluated, or while it is scanned. What the slabs before
+    // found is kept, with f's values at all of its vertices, those of the layer the next
+    // slab was to start from included.
+    let p = problem("sphere", &[], 0.02);
+    let tri = p.triangulation.build(3).unwrap();
+    let mut opts = TraceOptions {
+        bbox: Some(vec![[-1.3, 1.3]; 3]),
+        ..TraceOptions::default()
+    };
+    let full = exhaustive(&p.system, &tri, &CpuOracle::new(&p.system), &opts).unwrap();
+    let all: HashSet<&[u64]> = full.sorted_keys().into_iter().collect();
+    for at in [20, 33, 47, 60] {
+        let cancel = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+        opts.cancel = Some(cancel.clone());
+        let oracle = StopWhileEvaluating {
+            inner: CpuOracle::new(&p.system),
+            cancel,
+            at,
+            evaluations: Default::default(),
+            decided_after: Default::default(),
+        };
+        let part = exhaustive(&p.system, &tri, &oracle, &opts).unwrap();
+        assert_eq!(part.stats.stopped, Some(StopReason::Interrupted), "at {at}");
+        assert!(
+            !part.is_empty() && part.len() < full.len(),
+            "at {at}: {} of {}",
+            part.len(),
+            full.len()
+        );
+        assert!(part.sorted_keys().iter().all(|k| all.contains(k)));
+        let unknown = part.points().iter().filter(|x| !x.is_finite()).count();
+        assert_eq!(unknown, 0, "at {at}");
+    }
+}
+
+#[test]
 fn a_stop_inside_a_level_drops_the_level_undecided() {
     // A signal that comes while a level evaluates f at its new vertices: nothing more of the
     // level is decided (in high dimensions that is seconds of work), and the levels before

@@ -703,12 +703,13 @@ pub(crate) struct Slabs<'c, 'a> {
     plan: Vec<(usize, usize, usize)>,
 }
 
-/// A slab's window, evaluated: a grid of its own (vertex indices from the slab's first
-/// vertex), whose first `own` vertices are the slab's own, and at how many of its vertices
-/// f was evaluated (the others were the last window's).
+/// A slab's window: a grid of its own (vertex indices from the slab's first vertex), whose
+/// first `own` vertices are the slab's own, whose first `kept` were copied from the last
+/// window, and at how many of whose vertices f was evaluated.
 pub(crate) struct Window {
     pub grid: ScanGrid,
     pub own: usize,
+    pub kept: usize,
     pub evaluated: usize,
 }
 
@@ -776,10 +777,10 @@ impl<'c, 'a> Slabs<'c, 'a> {
             .map_or(self.whole.total, |row| row.offset)
     }
 
-    /// Slab `i`'s window, evaluated. `prev` is slab i - 1's window, whose buffers it reuses
-    /// and whose last layer (its first) it copies instead of evaluating f there again.
-    /// Interrupted (Ctrl-C) while f is evaluated, an error.
-    pub(crate) fn window(&self, i: usize, prev: Option<Window>) -> Result<Window> {
+    /// Slab `i`'s window, not evaluated yet ([`Slabs::evaluate`]). `prev` is slab i - 1's
+    /// window, whose buffers it reuses and whose last layer (its first) it copies instead of
+    /// evaluating f there again.
+    pub(crate) fn window(&self, i: usize, prev: Option<Window>) -> Window {
         let (a, b, c) = self.plan[i];
         let base = self.offset(a);
         let (len, own) = (self.offset(c) - base, self.offset(b) - base);
@@ -803,7 +804,7 @@ impl<'c, 'a> Slabs<'c, 'a> {
         };
         values.resize(len * k, 0.0);
         codes.resize(len, 0);
-        let mut grid = ScanGrid {
+        let grid = ScanGrid {
             lo: self.whole.lo.clone(),
             n: self.whole.n.clone(),
             rows: self.whole.rows[a..c]
@@ -819,13 +820,23 @@ impl<'c, 'a> Slabs<'c, 'a> {
             bounds: Vec::new(),
             codes,
         };
-        evaluate(self.ctx, &mut grid, kept..len, None)?;
-        mark_bases(self.ctx.tri, &mut grid, &self.near_base);
-        Ok(Window {
+        Window {
             grid,
             own,
-            evaluated: len - kept,
-        })
+            kept,
+            evaluated: 0,
+        }
+    }
+
+    /// f and the sign codes at the vertices of `window` that its last one did not hold.
+    /// Interrupted (Ctrl-C), an error, and the window holds f's values at its first `kept`
+    /// vertices only.
+    pub(crate) fn evaluate(&self, window: &mut Window) -> Result<()> {
+        let range = window.kept..window.grid.total;
+        evaluate(self.ctx, &mut window.grid, range.clone(), None)?;
+        mark_bases(self.ctx.tri, &mut window.grid, &self.near_base);
+        window.evaluated = range.len();
+        Ok(())
     }
 }
 

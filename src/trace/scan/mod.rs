@@ -299,29 +299,29 @@ fn scan_slabs<const W: usize>(
     let mut grid_non_finite = 0;
     let mut window = None;
     for i in 0..slabs.len() {
-        let grid::Window {
-            grid,
-            own,
-            evaluated,
-        } = match slabs.window(i, window.take()) {
-            // Interrupted while f is evaluated: what the slabs so far found is kept.
-            Err(_) if ctx.interrupted() => {
-                stats.stopped = Some(StopReason::Interrupted);
-                break;
-            }
-            w => w?,
-        };
-        stats.cpu_vertex_evaluations += evaluated as u64;
+        let mut next = slabs.window(i, window.take());
         // The grid vertices of S, one bit each: f's values there are kept for the sample.
-        let used: Vec<AtomicU64> = (0..grid.len().div_ceil(64))
+        let used: Vec<AtomicU64> = (0..next.grid.len().div_ceil(64))
             .map(|_| AtomicU64::new(0))
             .collect();
         for &j in &carried {
             used[j as usize / 64].fetch_or(1 << (j % 64), Ordering::Relaxed);
         }
+        match slabs.evaluate(&mut next) {
+            // Interrupted while f is evaluated: what the slabs so far found is kept, with
+            // the values of its vertices in this window's first layer.
+            Err(_) if ctx.interrupted() => {
+                stats.stopped = Some(StopReason::Interrupted);
+                marked_vertices(ctx, &next.grid, &used, 0..next.kept, &mut keys, &mut values)?;
+                break;
+            }
+            e => e?,
+        }
+        let (grid, own) = (&next.grid, next.own);
+        stats.cpu_vertex_evaluations += next.evaluated as u64;
         let whole = scan_cubes(
             ctx,
-            &grid,
+            grid,
             0..own,
             &mut size,
             None,
@@ -334,15 +334,11 @@ fn scan_slabs<const W: usize>(
         }
         // Stopped, S may use any vertex of the window; else the next one keeps the rest.
         let kept = if whole { own } else { grid.len() };
-        marked_vertices(ctx, &grid, &used, 0..kept, &mut keys, &mut values)?;
+        marked_vertices(ctx, grid, &used, 0..kept, &mut keys, &mut values)?;
         carried = marked(&used, kept..grid.len())
             .map(|j| j - kept as u32)
             .collect();
-        window = Some(grid::Window {
-            grid,
-            own,
-            evaluated,
-        });
+        window = Some(next);
         if !whole {
             break;
         }
