@@ -177,11 +177,25 @@ const MESHED: &[&str] = &[
 
 #[test]
 fn the_grid_phase_of_a_scan_stops_cleanly() {
+    // The whole scan's grid, for the counts of the stopped ones.
+    let dir = Scratch::new("signal-grid-whole");
+    let mut all = GRID.to_vec();
+    all.extend(["--no-complex", "--report", "r.json"]);
+    let (status, _, lines) = Run::start(&dir, &all).wait();
+    assert_eq!(status.code(), Some(0), "{lines:?}");
+    let whole = report(&dir.path("r.json"));
+    let grid = whole["vertices_evaluated"].as_u64().unwrap();
     for sig in ["INT", "TERM", "HUP"] {
         let r = stop_at("grid", GRID, "scan: evaluating", sig);
-        // Stopped before the grid was whole: nothing decided yet.
-        assert_eq!(r["vertices_evaluated"], 0, "{sig}: {r}");
-        assert_eq!(r["simplex_count"], 0, "{sig}");
+        // Stopped while the grid was evaluated a slab at a time: f at part of it, each
+        // vertex once, and the crossings of the slabs before kept.
+        let evaluated = r["vertices_evaluated"].as_u64().unwrap();
+        assert!(evaluated < grid, "{sig}: {evaluated} of {grid}: {r}");
+        assert_eq!(r["cpu_vertex_evaluations"], evaluated, "{sig}: {r}");
+        assert!(
+            r["simplex_count"].as_u64().unwrap() < whole["simplex_count"].as_u64().unwrap(),
+            "{sig}: {r}"
+        );
     }
 }
 

@@ -607,7 +607,7 @@ fn build_with(
         grid.bounds = vec![0.0; total * k];
     }
     grid.codes = vec![0; total];
-    evaluate(ctx, &mut grid, 0..total, device)?;
+    evaluate(ctx, &mut grid, 0..total, device).map_err(|(_, e)| e)?;
     mark_bases(ctx.tri, &mut grid, &near_base);
     Ok(grid)
 }
@@ -640,17 +640,19 @@ fn plan_rows(
 }
 
 /// f (through the oracle, or certified values from `device`) and the sign codes at the
-/// vertices `range` of `grid`, whose arrays already have room for them.
+/// vertices `range` of `grid`, whose arrays already have room for them. An error comes with
+/// how many of them were done.
 fn evaluate(
     ctx: &TraceContext,
     grid: &mut ScanGrid,
     range: Range<usize>,
     device: Option<&dyn crate::trace::DeviceValues>,
-) -> Result<()> {
+) -> std::result::Result<(), (usize, Error)> {
     let (d, k) = (ctx.d, ctx.k);
     let mut pairs = Vec::new();
     for start in range.clone().step_by(EVAL_STEP) {
-        super::cancelled(ctx)?;
+        let done = |e| (start - range.start, e);
+        super::cancelled(ctx).map_err(done)?;
         let end = (start + EVAL_STEP).min(range.end);
         let mut lattice = vec![0i32; (end - start) * d];
         lattice
@@ -663,7 +665,9 @@ fn evaluate(
         let values = &mut grid.values[start * k..end * k];
         if let Some(device) = device {
             pairs.resize(2 * (end - start) * k, 0.0);
-            device.eval_certified(ctx.tri, &lattice, &mut pairs)?;
+            device
+                .eval_certified(ctx.tri, &lattice, &mut pairs)
+                .map_err(done)?;
             let bounds = &mut grid.bounds[start * k..end * k];
             values
                 .par_iter_mut()
@@ -677,7 +681,8 @@ fn evaluate(
         } else {
             ctx.oracle
                 .values()
-                .eval_vertices(ctx.tri, &lattice, values)?;
+                .eval_vertices(ctx.tri, &lattice, values)
+                .map_err(done)?;
             grid.codes[start..end]
                 .par_iter_mut()
                 .zip(values.par_chunks(k))
@@ -764,11 +769,6 @@ impl<'c, 'a> Slabs<'c, 'a> {
         self.plan.len()
     }
 
-    /// Lattice vertices of the whole grid.
-    pub(crate) fn vertices(&self) -> usize {
-        self.whole.total
-    }
-
     /// The storage offset of row `r` of the whole grid (its total past the last row).
     fn offset(&self, r: usize) -> usize {
         self.whole
@@ -833,9 +833,10 @@ impl<'c, 'a> Slabs<'c, 'a> {
     /// vertices only.
     pub(crate) fn evaluate(&self, window: &mut Window) -> Result<()> {
         let range = window.kept..window.grid.total;
-        evaluate(self.ctx, &mut window.grid, range.clone(), None)?;
+        let done = evaluate(self.ctx, &mut window.grid, range.clone(), None);
+        window.evaluated = done.as_ref().map_or_else(|(n, _)| *n, |()| range.len());
+        done.map_err(|(_, e)| e)?;
         mark_bases(self.ctx.tri, &mut window.grid, &self.near_base);
-        window.evaluated = range.len();
         Ok(())
     }
 }

@@ -287,10 +287,7 @@ fn scan_slabs<const W: usize>(
     slab: usize,
 ) -> Result<Scanned<W>> {
     let slabs = grid::Slabs::new(ctx, bbox, slab)?;
-    let mut stats = TraceStats {
-        vertices: slabs.vertices() as u64,
-        ..TraceStats::default()
-    };
+    let mut stats = TraceStats::default();
     let mut found = Found::new(ctx);
     let mut size = BATCH_RANGE.0;
     let (mut keys, mut values) = (Vec::new(), Vec::new());
@@ -307,7 +304,11 @@ fn scan_slabs<const W: usize>(
         for &j in &carried {
             used[j as usize / 64].fetch_or(1 << (j % 64), Ordering::Relaxed);
         }
-        match slabs.evaluate(&mut next) {
+        let evaluated = slabs.evaluate(&mut next);
+        // Every vertex is evaluated once: the grid's vertices so far.
+        stats.vertices += next.evaluated as u64;
+        stats.cpu_vertex_evaluations += next.evaluated as u64;
+        match evaluated {
             // Interrupted while f is evaluated: what the slabs so far found is kept, with
             // the values of its vertices in this window's first layer.
             Err(_) if ctx.interrupted() => {
@@ -318,7 +319,6 @@ fn scan_slabs<const W: usize>(
             e => e?,
         }
         let (grid, own) = (&next.grid, next.own);
-        stats.cpu_vertex_evaluations += next.evaluated as u64;
         let whole = scan_cubes(
             ctx,
             grid,
