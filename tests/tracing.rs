@@ -520,18 +520,24 @@ fn an_interrupted_exhaustive_scan_keeps_what_it_found() {
         slice: None,
     };
     let part = exhaustive(&p.system, &tri, &oracle, &opts).unwrap();
-    assert_eq!(part.stats.stopped, Some(StopReason::Interrupted));
     assert!(full.stats.stopped.is_none());
+    assert_a_kept_part(&part, &full, "stopped after a batch");
+}
+
+/// `part`, a scan stopped by Ctrl-C, kept a part of the whole scan `full`: some of its
+/// simplices, none else, with f's values at every vertex of them (every point known).
+fn assert_a_kept_part(part: &Sample, full: &Sample, what: &str) {
+    assert_eq!(part.stats.stopped, Some(StopReason::Interrupted), "{what}");
     assert!(
         !part.is_empty() && part.len() < full.len(),
-        "{} of {}",
+        "{what}: {} of {}",
         part.len(),
         full.len()
     );
     let all: HashSet<&[u64]> = full.sorted_keys().into_iter().collect();
-    assert!(part.sorted_keys().iter().all(|k| all.contains(k)));
-    // f's values at every vertex of what it found were kept: every point is known.
-    assert!(part.points().iter().all(|x| x.is_finite()));
+    assert!(part.sorted_keys().iter().all(|k| all.contains(k)), "{what}");
+    let unknown = part.points().iter().filter(|x| !x.is_finite()).count();
+    assert_eq!(unknown, 0, "{what}");
 }
 
 /// The CPU oracle raising `cancel` as it evaluates f for the `at`-th time (inside a level,
@@ -600,7 +606,6 @@ fn a_scan_stopped_while_it_evaluates_f_keeps_what_it_found() {
         ..TraceOptions::default()
     };
     let full = exhaustive(&p.system, &tri, &CpuOracle::new(&p.system), &opts).unwrap();
-    let all: HashSet<&[u64]> = full.sorted_keys().into_iter().collect();
     for at in [20, 33, 47, 60] {
         let cancel = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
         opts.cancel = Some(cancel.clone());
@@ -612,16 +617,7 @@ fn a_scan_stopped_while_it_evaluates_f_keeps_what_it_found() {
             decided_after: Default::default(),
         };
         let part = exhaustive(&p.system, &tri, &oracle, &opts).unwrap();
-        assert_eq!(part.stats.stopped, Some(StopReason::Interrupted), "at {at}");
-        assert!(
-            !part.is_empty() && part.len() < full.len(),
-            "at {at}: {} of {}",
-            part.len(),
-            full.len()
-        );
-        assert!(part.sorted_keys().iter().all(|k| all.contains(k)));
-        let unknown = part.points().iter().filter(|x| !x.is_finite()).count();
-        assert_eq!(unknown, 0, "at {at}");
+        assert_a_kept_part(&part, &full, &format!("stopped at evaluation {at}"));
     }
 }
 
