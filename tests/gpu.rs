@@ -1287,8 +1287,10 @@ fn device_value_cases() -> Vec<Scaled> {
         ),
         ("complex-cosine", vec![("edge", 0.3)], 0.0),
         ("complex-cosine", vec![("edge", 0.25)], 0.0),
+        // The emulated device (even cases) rounds each operation in software, about 10 us
+        // a vertex in 5 dimensions: its bagel-klein scale is the coarser one.
+        ("bagel-klein", vec![("edge", 0.8)], 0.0),
         ("bagel-klein", vec![("edge", 0.6)], 0.0),
-        ("bagel-klein", vec![("edge", 0.5)], 0.0),
         ("cut-flat-torus", vec![("edge", 0.4)], 1.1),
         ("cut-flat-torus", vec![("edge", 0.3)], 1.1),
     ]
