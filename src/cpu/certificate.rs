@@ -25,6 +25,7 @@
 //! uncertain. Every bound is computed upward (times `grow`, plus `tiny`: [`Margins`]), and non-finite values fail
 //! every comparison towards uncertain.
 
+use super::UNROLLED_MAX;
 use crate::expr::certified::DeviceReal;
 
 /// The verdict: crossed for every matrix within the bounds.
@@ -139,19 +140,47 @@ pub fn gauss_jordan<R: DeviceReal>(n: usize, a: &mut [R], inv: &mut [R]) -> bool
         for t in 0..n {
             inv[c * n + t] = inv[c * n + t].mul(r_piv);
         }
-        for r in 0..n {
-            if r == c {
-                continue;
+        if n <= UNROLLED_MAX {
+            // Entry by entry: a constant n unrolls completely.
+            for r in 0..n {
+                if r == c {
+                    continue;
+                }
+                let f = a[r * n + c];
+                if f == zero {
+                    continue;
+                }
+                for t in c..n {
+                    a[r * n + t] = a[r * n + t].sub(f.mul(a[c * n + t]));
+                }
+                for t in 0..n {
+                    inv[r * n + t] = inv[r * n + t].sub(f.mul(inv[c * n + t]));
+                }
             }
-            let f = a[r * n + c];
+            continue;
+        }
+        // Larger n: the other rows in order, each minus f times the pivot row, as slices so
+        // that the loops vectorise (the same operations on each entry).
+        let (a_above, a_rest) = a[..n * n].split_at_mut(c * n);
+        let (a_piv, a_below) = a_rest.split_at_mut(n);
+        let (i_above, i_rest) = inv[..n * n].split_at_mut(c * n);
+        let (i_piv, i_below) = i_rest.split_at_mut(n);
+        let a_rows = a_above
+            .chunks_exact_mut(n)
+            .chain(a_below.chunks_exact_mut(n));
+        let i_rows = i_above
+            .chunks_exact_mut(n)
+            .chain(i_below.chunks_exact_mut(n));
+        for (ar, ir) in a_rows.zip(i_rows) {
+            let f = ar[c];
             if f == zero {
                 continue;
             }
-            for t in c..n {
-                a[r * n + t] = a[r * n + t].sub(f.mul(a[c * n + t]));
+            for (x, &y) in ar[c..].iter_mut().zip(&a_piv[c..]) {
+                *x = x.sub(f.mul(y));
             }
-            for t in 0..n {
-                inv[r * n + t] = inv[r * n + t].sub(f.mul(inv[c * n + t]));
+            for (x, &y) in ir.iter_mut().zip(i_piv.iter()) {
+                *x = x.sub(f.mul(y));
             }
         }
     }
@@ -183,15 +212,15 @@ fn certify_steps<R: DeviceReal, const BOUNDED: bool>(
     margins: &Margins,
 ) -> u32 {
     if n <= MAX_N {
-        let mut work = [R::of(0.0); 5 * MAX_N];
+        let mut work = [R::of(0.0); 6 * MAX_N];
         certify_in::<R, BOUNDED>(n, l, e, inv, margins, &mut work)
     } else {
-        let mut work = vec![R::of(0.0); 5 * n];
+        let mut work = vec![R::of(0.0); 6 * n];
         certify_in::<R, BOUNDED>(n, l, e, inv, margins, &mut work)
     }
 }
 
-/// [`certify_steps`] with its work space `work` (at least 5 n entries).
+/// [`certify_steps`] with its work space `work` (at least 6 n entries).
 #[inline(always)]
 fn certify_in<R: DeviceReal, const BOUNDED: bool>(
     n: usize,
@@ -204,7 +233,9 @@ fn certify_in<R: DeviceReal, const BOUNDED: bool>(
     let (rho, work) = work.split_at_mut(n);
     let (s, work) = work.split_at_mut(n);
     let (se, work) = work.split_at_mut(n);
-    let (kappa, z) = work.split_at_mut(n);
+    let (kappa, work) = work.split_at_mut(n);
+    let (z, acc) = work.split_at_mut(n);
+    let acc = &mut acc[..n];
     let m = In::<R>::new(margins);
     let zero = R::of(0.0);
     let one = R::of(1.0);
@@ -241,13 +272,28 @@ fn certify_in<R: DeviceReal, const BOUNDED: bool>(
     }
     let mut zmax = zero;
     for i in 0..n {
+        // Row i of |I - R L*|, summed. Each entry is accumulated over t in order: entry by
+        // entry for a constant n (it unrolls), else a row of L at a time (it vectorises).
         let mut computed = zero;
-        for j in 0..n {
-            let mut acc = delta(i, j);
-            for t in 0..n {
-                acc = acc.sub(inv[i * n + t].mul(l[t * n + j]));
+        if n <= UNROLLED_MAX {
+            for j in 0..n {
+                let mut acc = delta(i, j);
+                for t in 0..n {
+                    acc = acc.sub(inv[i * n + t].mul(l[t * n + j]));
+                }
+                computed = computed.add(acc.abs());
             }
-            computed = computed.add(acc.abs());
+        } else {
+            for (j, a) in acc.iter_mut().enumerate() {
+                *a = delta(i, j);
+            }
+            for t in 0..n {
+                let rit = inv[i * n + t];
+                for (a, &ltj) in acc.iter_mut().zip(&l[t * n..(t + 1) * n]) {
+                    *a = a.sub(rit.mul(ltj));
+                }
+            }
+            computed = acc.iter().fold(zero, |c, a| c.add(a.abs()));
         }
         let (mut mag, mut eb) = (one, zero);
         for t in 0..n {

@@ -18,6 +18,10 @@ macro_rules! unrolled {
 }
 pub(crate) use unrolled;
 
+/// The largest n that [`unrolled!`] gives an arm of its own; code that sees a larger n
+/// (at run time) takes its loops a row at a time instead.
+pub(crate) const UNROLLED_MAX: usize = 9;
+
 pub mod batch;
 pub mod certificate;
 #[cfg(test)]
