@@ -19,7 +19,8 @@ use super::solve::{invert, scaled_row_factors};
 #[derive(Clone, Debug)]
 pub struct Pivot {
     n: usize,
-    /// One allocation: the row scales (k), L (n x n), L^-1 (n x n) and L^-1 a (n).
+    /// One allocation: the row scales (k) and L^-1 (n x n), which are the state of a loaded
+    /// simplex, then L (n x n) and L^-1 a (n).
     buf: Vec<f64>,
 }
 
@@ -38,9 +39,20 @@ impl Pivot {
     fn parts(&mut self) -> (&mut [f64], &mut [f64], &mut [f64], &mut [f64]) {
         let n = self.n;
         let (scale, rest) = self.buf.split_at_mut(n - 1);
-        let (a, rest) = rest.split_at_mut(n * n);
-        let (inv, w) = rest.split_at_mut(n * n);
+        let (inv, rest) = rest.split_at_mut(n * n);
+        let (a, w) = rest.split_at_mut(n * n);
         (scale, a, inv, w)
+    }
+
+    /// The loaded simplex's state (its row scales and L^-1: k + (k + 1)^2 numbers), for
+    /// [`Pivot::restore`] to put back without inverting L again.
+    pub fn state(&self) -> &[f64] {
+        &self.buf[..self.n - 1 + self.n * self.n]
+    }
+
+    /// Loads the simplex whose [`Pivot::state`] this is (of a pivot for the same k).
+    pub fn restore(&mut self, state: &[f64]) {
+        self.buf[..state.len()].copy_from_slice(state);
     }
 
     /// Inverts L for the simplex with vertex values `F_j[c] = val(j, c)`; false when L is
@@ -196,6 +208,31 @@ mod tests {
         assert_eq!(p.exit(&[3.0]), Some(1));
         assert_eq!(p.exit(&[-3.0]), Some(0));
         assert_eq!(p.exit(&[f64::NAN]), None);
+    }
+
+    #[test]
+    fn a_saved_state_loads_its_simplex_again() {
+        let mut p = Pivot::new(1);
+        assert!(p.load(|j, _| [-1.0, 1.0][j]));
+        let saved = p.state().to_vec();
+        // The row scales and L^-1.
+        assert_eq!(saved.len(), 1 + 4);
+        assert!(p.load(|j, _| [1.0, -1.0][j]));
+        assert_eq!(p.exit(&[0.0]), Some(1));
+        p.restore(&saved);
+        assert_eq!(p.exit(&[0.0]), Some(0));
+        assert_eq!(p.exit(&[3.0]), Some(1));
+        // k = 2: F = 0, e1, e2, then the same vertices in another order.
+        let mut q = Pivot::new(2);
+        let f = [[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]];
+        assert!(q.load(|j, c| f[j][c]));
+        let saved = q.state().to_vec();
+        assert_eq!(saved.len(), 2 + 9);
+        assert!(q.load(|j, c| f[2 - j][c]));
+        assert_eq!(q.exit(&[-1.0, -1.0]), Some(2));
+        q.restore(&saved);
+        assert_eq!(q.exit(&[-1.0, -1.0]), Some(0));
+        assert_eq!(q.exit(&[2.0, -3.0]), Some(1));
     }
 
     #[test]

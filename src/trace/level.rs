@@ -47,6 +47,10 @@ struct Named<const W: usize> {
     cands: Vec<Candidate<W>>,
     /// Cofacets whose new vertex is not cached yet.
     deferred: Vec<Deferred<W>>,
+    /// The pivot states ([`Pivot::state`]) of the frontier simplices that have deferred
+    /// cofacets, one after the other in the order of `deferred`, and whether each loaded.
+    pivots: Vec<f64>,
+    loaded: Vec<bool>,
     /// Cofacets whose facets were all listed (the pivot could not run).
     fallbacks: u64,
     /// Cofacets with a non-finite value at their new vertex (no other crossed facet).
@@ -54,12 +58,15 @@ struct Named<const W: usize> {
 }
 
 impl<const W: usize> Named<W> {
-    /// Room for `cands` candidates and `deferred` cofacets: sized up front, because
-    /// growing vectors on several threads at once contends for the allocator.
-    fn with_capacity(cands: usize, deferred: usize) -> Self {
+    /// Room for `cands` candidates and `deferred` cofacets (and as many pivot states of
+    /// `state` numbers): sized up front, because growing vectors on several threads at once
+    /// contends for the allocator.
+    fn with_capacity(cands: usize, deferred: usize, state: usize) -> Self {
         Named {
             cands: Vec::with_capacity(cands),
             deferred: Vec::with_capacity(deferred),
+            pivots: Vec::with_capacity(deferred * state),
+            loaded: Vec::with_capacity(deferred),
             fallbacks: 0,
             non_finite: 0,
         }
@@ -72,9 +79,15 @@ impl<const W: usize> Named<W> {
             .reserve(parts.iter().map(|p| p.cands.len()).sum());
         self.deferred
             .reserve(parts.iter().map(|p| p.deferred.len()).sum());
+        self.pivots
+            .reserve(parts.iter().map(|p| p.pivots.len()).sum());
+        self.loaded
+            .reserve(parts.iter().map(|p| p.loaded.len()).sum());
         for p in parts {
             self.cands.extend_from_slice(&p.cands);
             self.deferred.extend_from_slice(&p.deferred);
+            self.pivots.extend_from_slice(&p.pivots);
+            self.loaded.extend_from_slice(&p.loaded);
             self.fallbacks += p.fallbacks;
             self.non_finite += p.non_finite;
         }
@@ -135,6 +148,8 @@ impl<'e, 'a, const W: usize> Namer<'e, 'a, W> {
         deferred: usize,
     ) -> Self {
         let blank = engine.ctx.codec.scratch();
+        // A pivot state: k row scales and L^-1.
+        let state = engine.ctx.k + (engine.ctx.k + 1).pow(2);
         Namer {
             frontier,
             sigma: blank.clone(),
@@ -146,7 +161,7 @@ impl<'e, 'a, const W: usize> Namer<'e, 'a, W> {
                 key: [0; W],
                 v: [0; MAX_DIM],
                 skip: Vec::with_capacity(4 * engine.ctx.d),
-                out: Named::with_capacity(cands, deferred),
+                out: Named::with_capacity(cands, deferred, state),
             },
         }
     }
@@ -170,9 +185,10 @@ impl<'e, 'a, const W: usize> Namer<'e, 'a, W> {
     }
 
     /// Names the exit of every cofacet of frontier simplex `i` whose new vertex is cached,
-    /// and defers the others.
+    /// and defers the others (keeping the pivot's state for them).
     fn all_cofacets(&mut self, i: usize) -> Result<()> {
         let ok = self.load(i);
+        let deferred = self.work.out.deferred.len();
         let mut via = 0u32;
         let mut err = Ok(());
         let mut stop = false;
@@ -185,13 +201,29 @@ impl<'e, 'a, const W: usize> Namer<'e, 'a, W> {
             }
             via += 1;
         });
+        if self.work.out.deferred.len() > deferred {
+            let out = &mut self.work.out;
+            out.pivots.extend_from_slice(self.work.pivot.state());
+            out.loaded.push(ok);
+        }
         err
     }
 
     /// Names the exits of the deferred cofacets `some` (all of frontier simplex `i`), with
-    /// the cache indices of their new vertices.
-    fn some_cofacets(&mut self, i: usize, some: &[(Deferred<W>, u32)]) -> Result<()> {
-        let ok = self.load(i);
+    /// the cache indices of their new vertices; `pivot` is the simplex's pivot state and
+    /// whether it loaded, kept when they were deferred (L is not inverted again).
+    fn some_cofacets(
+        &mut self,
+        i: usize,
+        some: &[(Deferred<W>, u32)],
+        pivot: (&[f64], bool),
+    ) -> Result<()> {
+        let e = self.work.engine;
+        e.ctx
+            .codec
+            .decode_into_w(e.s.key(self.frontier.members.get(i)), &mut self.sigma);
+        let ok = pivot.1;
+        self.work.pivot.restore(pivot.0);
         for (n, (t, apex)) in some.iter().enumerate() {
             if n % 4096 == 4095 && self.work.engine.ctx.interrupted() {
                 break;
@@ -417,7 +449,8 @@ impl<const W: usize> Engine<'_, W> {
             let mut named = next
                 .take()
                 .expect("each slice is named before it is decided")?;
-            held += (named.cands.len() + 2 * named.deferred.len()) * per_cand;
+            held += (named.cands.len() + 2 * named.deferred.len()) * per_cand
+                + named.pivots.len() * size_of::<f64>();
             // The level's new simplices: about as many as the frontier's (a manifold's levels
             // grow slowly), twice that to be safe.
             if self.must_stop_growing(held, 2 * len) {
@@ -484,7 +517,7 @@ impl<const W: usize> Engine<'_, W> {
             }
             Ok(namer.work.out)
         });
-        let mut named = Named::with_capacity(0, 0);
+        let mut named = Named::with_capacity(0, 0, 0);
         named.extend(parts)?;
         Ok(named)
     }
@@ -499,6 +532,8 @@ impl<const W: usize> Engine<'_, W> {
             return Ok(());
         }
         let deferred = std::mem::take(&mut named.deferred);
+        let pivots = std::mem::take(&mut named.pivots);
+        let loaded = std::mem::take(&mut named.loaded);
         // The distinct new vertices in key order, cached in that order: each deferred
         // cofacet's new vertex gets the cache index its rank gives, with no lookup.
         let mut by_vertex: Vec<(Key<W>, u32)> = deferred
@@ -528,6 +563,9 @@ impl<const W: usize> Engine<'_, W> {
         let starts: Vec<usize> = (0..with_apex.len())
             .filter(|&i| i == 0 || with_apex[i - 1].0.from != with_apex[i].0.from)
             .collect();
+        // One pivot state per run of a frontier simplex's deferred cofacets, in order.
+        debug_assert_eq!(loaded.len(), starts.len());
+        let state = pivots.len() / loaded.len().max(1);
         let parts = par_ranges(starts.len(), SIGMA_CHUNK, |r| -> Result<Named<W>> {
             let end = starts.get(r.end).copied().unwrap_or(with_apex.len());
             let mut namer = Namer::new(self, frontier, end - starts[r.start], 0);
@@ -537,7 +575,8 @@ impl<const W: usize> Engine<'_, W> {
                 }
                 let end = starts.get(s + 1).copied().unwrap_or(with_apex.len());
                 let group = &with_apex[starts[s]..end];
-                namer.some_cofacets(group[0].0.from as usize, group)?;
+                let pivot = (&pivots[s * state..(s + 1) * state], loaded[s]);
+                namer.some_cofacets(group[0].0.from as usize, group, pivot)?;
             }
             if !self.ctx.interrupted() {
                 namer.work.out.cands.sort_unstable();
