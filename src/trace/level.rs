@@ -414,10 +414,13 @@ impl<const W: usize> Engine<'_, W> {
         let (d, n) = (self.ctx.d, self.ctx.k + 1);
         let per_cand = size_of::<Candidate<W>>() + n * 12 + d * 8 + 16;
         // Naming holds a candidate per cofacet (and deferred ones): in high dimensions many
-        // per simplex. Slices keep it within a quarter of the memory left and within
+        // per simplex, and a pivot state per simplex with deferred cofacets (k + n^2
+        // numbers). Slices keep it within a quarter of the memory left and within
         // SLICE_CANDIDATES, so that the memory limit and a signal are heeded inside a level.
         let cofacets = self.cofacets_per_simplex(frontier);
-        let naming = |r: usize| r.saturating_mul(cofacets).saturating_mul(2 * per_cand);
+        let state = (self.ctx.k + n * n) * size_of::<f64>();
+        let per_simplex = cofacets.saturating_mul(2 * per_cand).saturating_add(state);
+        let naming = |r: usize| r.saturating_mul(per_simplex);
         let room = self
             .ctx
             .max_memory
