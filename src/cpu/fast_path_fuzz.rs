@@ -176,20 +176,19 @@ fn run(k: usize, kind: usize, cases: usize, seed: u64) -> Tally {
     t
 }
 
-#[test]
-fn the_fast_path_is_the_exact_decision_on_ten_million_integer_simplices() {
-    const CASES: usize = 312_500; // x 8 k x 4 kinds = 10^7
-    let jobs: Vec<(usize, usize)> = (1..=8)
+/// [`run`] for every k of `ks` and every kind, `cases` each, in parallel; each tally with
+/// its k and kind. The fast path must decide nearly all uniform cases (one that refuses
+/// everything is sound but fails here, as does a wrong inverse, whose residual is then too
+/// large to certify anything).
+fn run_all(ks: std::ops::RangeInclusive<usize>, cases: usize) -> Vec<(usize, usize, Tally)> {
+    let jobs: Vec<(usize, usize)> = ks
         .flat_map(|k| (0..KINDS).map(move |kind| (k, kind)))
         .collect();
     let tallies: Vec<(usize, usize, Tally)> = jobs
         .par_iter()
-        .map(|&(k, kind)| (k, kind, run(k, kind, CASES, (k * 10 + kind) as u64)))
+        .map(|&(k, kind)| (k, kind, run(k, kind, cases, (k * 10 + kind) as u64)))
         .collect();
-    let total: usize = tallies.iter().map(|t| t.2.cases).sum();
     for &(k, kind, t) in &tallies {
-        // The fast path decides nearly all uniform cases (a fast path that refuses
-        // everything is sound but fails here).
         if kind == 3 {
             assert!(
                 t.decided * 100 >= 99 * t.cases,
@@ -197,6 +196,14 @@ fn the_fast_path_is_the_exact_decision_on_ten_million_integer_simplices() {
             );
         }
     }
+    tallies
+}
+
+#[test]
+fn the_fast_path_is_the_exact_decision_on_ten_million_integer_simplices() {
+    const CASES: usize = 312_500; // x 8 k x 4 kinds = 10^7
+    let tallies = run_all(1..=8, CASES);
+    let total: usize = tallies.iter().map(|t| t.2.cases).sum();
     // The i128 reference decides most (the big integers' share sets the time).
     let big: usize = tallies.iter().map(|t| t.2.big).sum();
     assert!(big * 20 <= total, "{big} of {total} overflowed i128");
@@ -219,24 +226,7 @@ fn the_fast_path_is_the_exact_decision_on_ten_million_integer_simplices() {
 fn the_fast_path_above_the_unrolled_sizes_is_the_exact_decision() {
     // n = k + 1 from 10 to 17: the elimination and the certificate's residual go a row at a
     // time there (`UNROLLED_MAX`), not entry by entry.
-    const CASES: usize = 400;
-    let jobs: Vec<(usize, usize)> = (9..=16)
-        .flat_map(|k| (0..KINDS).map(move |kind| (k, kind)))
-        .collect();
-    let tallies: Vec<(usize, usize, Tally)> = jobs
-        .par_iter()
-        .map(|&(k, kind)| (k, kind, run(k, kind, CASES, (k * 10 + kind) as u64)))
-        .collect();
-    for &(k, kind, t) in &tallies {
-        // Nearly all uniform cases decided: a wrong inverse leaves a residual too large to
-        // certify anything.
-        if kind == 3 {
-            assert!(
-                t.decided * 100 >= 99 * t.cases,
-                "k = {k}, kind {kind}: {t:?}"
-            );
-        }
-    }
+    let tallies = run_all(9..=16, 400);
     // The near ties are reached at these sizes too.
     let wrong: usize = tallies.iter().map(|t| t.2.naive_wrong).sum();
     assert!(wrong > 0, "the naive signs are never wrong: {tallies:?}");
