@@ -427,6 +427,7 @@ fn clip(s: &Sample, domain: &Domain, mut raw: Vec<RawLevel>, d: usize, m: usize)
         points,
         interior_vertices: n,
         levels,
+        polygons: Default::default(),
         stats: ComplexStats::default(),
     }
 }

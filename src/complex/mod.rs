@@ -19,6 +19,8 @@ mod build;
 pub mod surface;
 pub mod topology;
 
+use std::sync::OnceLock;
+
 use serde::Serialize;
 
 use crate::error::Result;
@@ -110,6 +112,9 @@ pub struct Complex {
     points: Vec<f64>,
     interior_vertices: usize,
     levels: Vec<Level>,
+    /// The 2-cells as polygons, oriented consistently where they can be, once asked for
+    /// (the topology and a mesh's export both need them).
+    polygons: OnceLock<surface::Polygons>,
     /// What it took.
     pub stats: ComplexStats,
 }
@@ -158,8 +163,14 @@ impl Complex {
             points,
             interior_vertices,
             levels,
+            polygons: OnceLock::new(),
             stats,
         }
+    }
+
+    /// The 2-cells as polygons, built on first use.
+    pub(crate) fn polygons(&self) -> &surface::Polygons {
+        self.polygons.get_or_init(|| surface::Polygons::of(self))
     }
 
     /// [`Complex::build_within`], stopping with an error between levels once `cancel` is set.

@@ -19,11 +19,27 @@ pub struct Surface {
     pub bad_cells: usize,
 }
 
-impl Surface {
-    /// Orders the 2-cells of `c` (m >= 2). For m = 2 it also orients them consistently when
-    /// possible, each component by BFS over shared edges; with `f` and d = 3, each component
-    /// then faces along the gradient of f.
-    pub fn new(c: &Complex, f: Option<&dyn ImplicitFunction>) -> Self {
+/// The 2-cells of a complex as polygons in cyclic order, with the flips that orient them
+/// consistently and the components the flips were found in: [`Surface::new`] without f,
+/// kept by the complex ([`Complex::polygons`]) so that it is built once.
+#[derive(Clone, Debug, Default)]
+pub(crate) struct Polygons {
+    offsets: Vec<u32>,
+    vertices: Vec<u32>,
+    /// Whether the flips orient the polygons consistently (m = 2).
+    pub orientable: bool,
+    bad_cells: usize,
+    /// Per polygon, whether it is reversed (empty unless orientable with m = 2).
+    flip: Vec<bool>,
+    /// The polygons component by component, and where each component starts there.
+    order: Vec<u32>,
+    starts: Vec<u32>,
+}
+
+impl Polygons {
+    /// Orders the 2-cells of `c` (m >= 2); for m = 2 also orients them consistently when
+    /// possible, each component by BFS over shared edges.
+    pub(crate) fn of(c: &Complex) -> Self {
         let edges = c.level(1);
         let faces = c.level(2);
         // In chunks, each into flat arrays with reused scratch: no allocation per polygon.
@@ -55,14 +71,130 @@ impl Surface {
             offsets.extend(ends.iter().map(|e| base + e));
             vertices.extend_from_slice(verts);
         }
-        let mut s = Surface {
+        let mut p = Polygons {
             offsets,
             vertices,
             orientable: bad_cells == 0,
             bad_cells,
+            ..Polygons::default()
         };
-        if c.dim() == 2 && s.orientable {
-            s.orient(c, f);
+        if c.dim() == 2 && p.orientable {
+            p.orient(c);
+        }
+        p
+    }
+
+    /// Polygon `i`: vertex indices in cyclic order, before any flip.
+    fn polygon(&self, i: usize) -> &[u32] {
+        &self.vertices[self.offsets[i] as usize..self.offsets[i + 1] as usize]
+    }
+
+    /// Finds the flips that make neighbours agree, component by component; clears
+    /// `orientable` (and keeps no flip) on a conflict.
+    fn orient(&mut self, c: &Complex) {
+        let edges = c.level(1);
+        let faces = c.level(2);
+        const NONE: u32 = u32::MAX;
+        // The (up to two) polygons at each edge.
+        let mut at = vec![[NONE; 2]; edges.len()];
+        for p in 0..faces.len() {
+            for &e in faces.facets(p) {
+                let slot = &mut at[e as usize];
+                if slot[0] == NONE {
+                    slot[0] = p as u32;
+                } else if slot[1] == NONE {
+                    slot[1] = p as u32;
+                } else {
+                    self.orientable = false;
+                    return;
+                }
+            }
+        }
+        let mut flip = vec![None::<bool>; faces.len()];
+        let mut queue = std::collections::VecDeque::new();
+        for start in 0..faces.len() {
+            if flip[start].is_some() {
+                continue;
+            }
+            flip[start] = Some(false);
+            queue.push_back(start);
+            self.starts.push(self.order.len() as u32);
+            self.order.push(start as u32);
+            while let Some(p) = queue.pop_front() {
+                let fp = flip[p] == Some(true);
+                for &e in faces.facets(p) {
+                    let [u, v] = at[e as usize];
+                    let q = if u as usize == p { v } else { u };
+                    if q == NONE {
+                        continue;
+                    }
+                    let q = q as usize;
+                    let ab = <[u32; 2]>::try_from(edges.facets(e as usize)).expect("2 ends");
+                    // Opposite walks of the shared edge, after flips.
+                    let want = fp == (self.walks(p, ab) != self.walks(q, ab));
+                    match flip[q] {
+                        None => {
+                            flip[q] = Some(want);
+                            queue.push_back(q);
+                            self.order.push(q as u32);
+                        }
+                        Some(x) if x != want => {
+                            self.orientable = false;
+                            return;
+                        }
+                        _ => {}
+                    }
+                }
+            }
+        }
+        self.flip = flip.into_iter().map(|x| x == Some(true)).collect();
+    }
+
+    /// Whether polygon `p` walks from `ab[0]` to `ab[1]`.
+    fn walks(&self, p: usize, ab: [u32; 2]) -> bool {
+        let poly = self.polygon(p);
+        let i = poly
+            .iter()
+            .position(|&v| v == ab[0])
+            .expect("edge of the polygon");
+        poly[(i + 1) % poly.len()] == ab[1]
+    }
+}
+
+impl Surface {
+    /// Orders the 2-cells of `c` (m >= 2). For m = 2 it also orients them consistently when
+    /// possible, each component by BFS over shared edges; with `f` and d = 3, each component
+    /// then faces along the gradient of f. The polygons and their consistent orientation
+    /// are the complex's ([`Complex::polygons`], built once); only the gradient's turn is
+    /// computed here.
+    pub fn new(c: &Complex, f: Option<&dyn ImplicitFunction>) -> Self {
+        let p = c.polygons();
+        let mut s = Surface {
+            offsets: p.offsets.clone(),
+            vertices: p.vertices.clone(),
+            orientable: p.orientable,
+            bad_cells: p.bad_cells,
+        };
+        if p.flip.is_empty() {
+            return s;
+        }
+        let mut flip = p.flip.clone();
+        if let (Some(f), 3) = (f, c.ambient_dim()) {
+            let ends = p.starts.iter().skip(1).map(|&e| e as usize);
+            for (start, end) in p.starts.iter().zip(ends.chain([p.order.len()])) {
+                let component = &p.order[*start as usize..end];
+                if s.against_gradient(c, f, component, &flip) {
+                    for &q in component {
+                        flip[q as usize] = !flip[q as usize];
+                    }
+                }
+            }
+        }
+        for (q, fl) in flip.iter().enumerate() {
+            if *fl {
+                let (a, b) = (s.offsets[q] as usize, s.offsets[q + 1] as usize);
+                s.vertices[a..b].reverse();
+            }
         }
         s
     }
@@ -91,98 +223,18 @@ impl Surface {
         t
     }
 
-    /// Reverses polygons so that neighbours agree; clears `orientable` on a conflict.
-    fn orient(&mut self, c: &Complex, f: Option<&dyn ImplicitFunction>) {
-        let edges = c.level(1);
-        let faces = c.level(2);
-        const NONE: u32 = u32::MAX;
-        // The (up to two) polygons at each edge.
-        let mut at = vec![[NONE; 2]; edges.len()];
-        for p in 0..faces.len() {
-            for &e in faces.facets(p) {
-                let slot = &mut at[e as usize];
-                if slot[0] == NONE {
-                    slot[0] = p as u32;
-                } else if slot[1] == NONE {
-                    slot[1] = p as u32;
-                } else {
-                    self.orientable = false;
-                    return;
-                }
-            }
-        }
-        let mut flip = vec![None::<bool>; faces.len()];
-        let mut queue = std::collections::VecDeque::new();
-        for start in 0..faces.len() {
-            if flip[start].is_some() {
-                continue;
-            }
-            flip[start] = Some(false);
-            queue.push_back(start);
-            let mut component = vec![start];
-            while let Some(p) = queue.pop_front() {
-                let fp = flip[p] == Some(true);
-                for &e in faces.facets(p) {
-                    let [u, v] = at[e as usize];
-                    let q = if u as usize == p { v } else { u };
-                    if q == NONE {
-                        continue;
-                    }
-                    let q = q as usize;
-                    let ab = <[u32; 2]>::try_from(edges.facets(e as usize)).expect("2 ends");
-                    // Opposite walks of the shared edge, after flips.
-                    let want = fp == (self.walks(p, ab) != self.walks(q, ab));
-                    match flip[q] {
-                        None => {
-                            flip[q] = Some(want);
-                            queue.push_back(q);
-                            component.push(q);
-                        }
-                        Some(x) if x != want => self.orientable = false,
-                        _ => {}
-                    }
-                }
-            }
-            if let (Some(f), 3) = (f, c.ambient_dim()) {
-                if self.orientable && self.against_gradient(c, f, &component, &flip) {
-                    for &p in &component {
-                        flip[p] = flip[p].map(|x| !x);
-                    }
-                }
-            }
-        }
-        if !self.orientable {
-            return;
-        }
-        for (p, fl) in flip.iter().enumerate() {
-            if *fl == Some(true) {
-                let (a, b) = (self.offsets[p] as usize, self.offsets[p + 1] as usize);
-                self.vertices[a..b].reverse();
-            }
-        }
-    }
-
-    /// Whether polygon `p` walks from `ab[0]` to `ab[1]`.
-    fn walks(&self, p: usize, ab: [u32; 2]) -> bool {
-        let poly = self.polygon(p);
-        let i = poly
-            .iter()
-            .position(|&v| v == ab[0])
-            .expect("edge of the polygon");
-        poly[(i + 1) % poly.len()] == ab[1]
-    }
-
     /// Whether the component, with its flips, faces against the gradient of f overall.
     fn against_gradient(
         &self,
         c: &Complex,
         f: &dyn ImplicitFunction,
-        component: &[usize],
-        flip: &[Option<bool>],
+        component: &[u32],
+        flip: &[bool],
     ) -> bool {
         let score: f64 = component
             .par_iter()
             .map(|&p| {
+                let p = p as usize;
                 let poly = self.polygon(p);
                 let x0 = c.point(poly[0] as usize);
                 let mut n = [0.0; 3];
@@ -204,7 +256,7 @@ impl Surface {
                 let mut g = [0.0; 3];
                 f.jacobian(&centre, &mut g);
                 let s = n[0] * g[0] + n[1] * g[1] + n[2] * g[2];
-                if flip[p] == Some(true) {
+                if flip[p] {
                     -s
                 } else {
                     s

@@ -6,7 +6,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use hashbrown::HashMap;
 use serde::Serialize;
 
-use super::{Complex, Surface};
+use super::Complex;
 
 /// Offenders listed by name in a report (all are counted).
 pub const MAX_LISTED_OFFENDERS: usize = 20;
@@ -174,7 +174,7 @@ pub(super) fn analyse(c: &Complex, cancel: &AtomicBool) -> Option<Topology> {
     if cancelled() {
         return None;
     }
-    let orientable = (m == 2).then(|| Surface::new(c, None).orientable);
+    let orientable = (m == 2).then(|| c.polygons().orientable);
     let chi = euler(&cells);
     let betti_mod2 = if manifold && m <= 3 {
         let b0 = components;
