@@ -2,6 +2,8 @@
 //! consistent orientation when one exists (in R^3, outward along the gradient of f), and
 //! triangles.
 
+use std::sync::atomic::{AtomicBool, AtomicU32, Ordering};
+
 use rayon::prelude::*;
 
 use super::Complex;
@@ -90,26 +92,58 @@ impl Polygons {
     }
 
     /// Finds the flips that make neighbours agree, component by component; clears
-    /// `orientable` (and keeps no flip) on a conflict.
+    /// `orientable` (and keeps no flip) on a conflict. The polygons at each edge and
+    /// whether they walk it the same way are found in parallel first; the BFS then reads
+    /// one entry per edge.
     fn orient(&mut self, c: &Complex) {
         let edges = c.level(1);
         let faces = c.level(2);
         const NONE: u32 = u32::MAX;
-        // The (up to two) polygons at each edge.
-        let mut at = vec![[NONE; 2]; edges.len()];
-        for p in 0..faces.len() {
-            for &e in faces.facets(p) {
-                let slot = &mut at[e as usize];
-                if slot[0] == NONE {
-                    slot[0] = p as u32;
-                } else if slot[1] == NONE {
-                    slot[1] = p as u32;
-                } else {
-                    self.orientable = false;
-                    return;
+        // The (up to two) polygons at each edge, in any order; a third one at an edge
+        // ends the orientation.
+        let at: Vec<[AtomicU32; 2]> = (0..edges.len())
+            .into_par_iter()
+            .map(|_| [AtomicU32::new(NONE), AtomicU32::new(NONE)])
+            .collect();
+        let crowded = AtomicBool::new(false);
+        (0..faces.len())
+            .into_par_iter()
+            .with_min_len(1 << 12)
+            .for_each(|p| {
+                for &e in faces.facets(p) {
+                    let [a, b] = &at[e as usize];
+                    let put = |s: &AtomicU32| {
+                        s.compare_exchange(NONE, p as u32, Ordering::Relaxed, Ordering::Relaxed)
+                            .is_ok()
+                    };
+                    if !put(a) && !put(b) {
+                        crowded.store(true, Ordering::Relaxed);
+                    }
                 }
-            }
+            });
+        if crowded.into_inner() {
+            self.orientable = false;
+            return;
         }
+        // Per edge: its polygons (the lower first, as a walk over the polygons in order
+        // would list them) and whether they walk it the same way.
+        let links: Vec<(u32, u32, bool)> = at
+            .into_par_iter()
+            .enumerate()
+            .map(|(e, [a, b])| {
+                let (a, b) = (a.into_inner(), b.into_inner());
+                let (u, v) = if b != NONE && b < a { (b, a) } else { (a, b) };
+                if v == NONE {
+                    return (u, v, false);
+                }
+                let ab = <[u32; 2]>::try_from(edges.facets(e)).expect("2 ends");
+                (
+                    u,
+                    v,
+                    self.walks(u as usize, ab) == self.walks(v as usize, ab),
+                )
+            })
+            .collect();
         let mut flip = vec![None::<bool>; faces.len()];
         let mut queue = std::collections::VecDeque::new();
         for start in 0..faces.len() {
@@ -123,15 +157,15 @@ impl Polygons {
             while let Some(p) = queue.pop_front() {
                 let fp = flip[p] == Some(true);
                 for &e in faces.facets(p) {
-                    let [u, v] = at[e as usize];
+                    let (u, v, same) = links[e as usize];
                     let q = if u as usize == p { v } else { u };
                     if q == NONE {
                         continue;
                     }
                     let q = q as usize;
-                    let ab = <[u32; 2]>::try_from(edges.facets(e as usize)).expect("2 ends");
-                    // Opposite walks of the shared edge, after flips.
-                    let want = fp == (self.walks(p, ab) != self.walks(q, ab));
+                    // Opposite walks of the shared edge, after flips: one of the two turns
+                    // when they walk it the same way.
+                    let want = fp != same;
                     match flip[q] {
                         None => {
                             flip[q] = Some(want);
@@ -300,4 +334,44 @@ fn cycle<'a>(
         order.push(next);
     }
     false
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::complex::{ComplexStats, Level};
+
+    /// The first `pages` of three triangles on the edge from vertex 0 to vertex 1 (the
+    /// pages of a book, the edge its spine), in R^3.
+    fn book(pages: usize) -> Complex {
+        let edges: [[u32; 2]; 7] = [[0, 1], [0, 2], [1, 2], [0, 3], [1, 3], [0, 4], [1, 4]];
+        // The second page walks the spine the other way: were the third page left out of
+        // the spine's polygons, the BFS would find no conflict.
+        let faces: [[u32; 3]; 3] = [[0, 1, 2], [3, 0, 4], [0, 5, 6]];
+        let ne = 1 + 2 * pages;
+        let lists = |cells: &[u32], n: usize| {
+            let offsets = (0..=cells.len() / n).map(|i| (i * n) as u32).collect();
+            Level::from_lists(offsets, cells.to_vec(), cells.len() / n)
+        };
+        let levels = vec![
+            lists(edges[..ne].as_flattened(), 2),
+            lists(faces[..pages].as_flattened(), 3),
+        ];
+        let nv = 2 + pages;
+        Complex::from_parts(3, vec![0.0; 3 * nv], nv, levels, ComplexStats::default())
+    }
+
+    #[test]
+    fn three_polygons_at_one_edge_have_no_orientation() {
+        let two = book(2);
+        assert!(two.polygons().orientable);
+        assert!(Surface::new(&two, None).orientable);
+        let three = book(3);
+        assert!(!three.polygons().orientable);
+        let s = Surface::new(&three, None);
+        assert!(!s.orientable);
+        // The polygons are kept, in the order of their edges, unflipped.
+        assert_eq!(s.len(), 3);
+        assert_eq!(s.polygon(2), &[0, 1, 4]);
+    }
 }
