@@ -88,7 +88,7 @@ impl Polygons {
 
     /// Polygon `i`: vertex indices in cyclic order, before any flip.
     fn polygon(&self, i: usize) -> &[u32] {
-        &self.vertices[self.offsets[i] as usize..self.offsets[i + 1] as usize]
+        polygon_in(&self.offsets, &self.vertices, i)
     }
 
     /// Finds the flips that make neighbours agree, component by component; clears
@@ -243,7 +243,7 @@ impl Surface {
     }
     /// Polygon `i`: vertex indices in cyclic order.
     pub fn polygon(&self, i: usize) -> &[u32] {
-        &self.vertices[self.offsets[i] as usize..self.offsets[i + 1] as usize]
+        polygon_in(&self.offsets, &self.vertices, i)
     }
     /// Fan triangles of every polygon, with the polygons' orientation.
     pub fn triangles(&self) -> Vec<[u32; 3]> {
@@ -299,6 +299,12 @@ impl Surface {
             .sum();
         score < 0.0
     }
+}
+
+/// Polygon `i` of polygons stored one after another in `vertices`, polygon i ending at
+/// `offsets[i + 1]`.
+fn polygon_in<'a>(offsets: &[u32], vertices: &'a [u32], i: usize) -> &'a [u32] {
+    &vertices[offsets[i] as usize..offsets[i + 1] as usize]
 }
 
 /// The vertices of a polygon in cyclic order from its edges (pairs of vertex indices), into
