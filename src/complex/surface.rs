@@ -199,7 +199,7 @@ impl Surface {
     /// Orders the 2-cells of `c` (m >= 2). For m = 2 it also orients them consistently when
     /// possible, each component by BFS over shared edges; with `f` and d = 3, each component
     /// then faces along the gradient of f. The polygons and their consistent orientation
-    /// are the complex's ([`Complex::polygons`], built once); only the gradient's turn is
+    /// are the complex's (built once and kept with it); only the gradient's turn is
     /// computed here.
     pub fn new(c: &Complex, f: Option<&dyn ImplicitFunction>) -> Self {
         let p = c.polygons();
