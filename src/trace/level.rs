@@ -8,9 +8,13 @@
 //! order, so the output does not depend on threads.
 
 use std::ops::Range;
+use std::sync::MutexGuard;
+
+use rayon::prelude::*;
 
 use super::engine::Engine;
 use super::frontier::{par_ranges, sort, sort_runs, Back, Found, Frontier, Verdicts};
+use super::recent::RecentVertices;
 use super::table::Key;
 use crate::cpu::pivot::Pivot;
 use crate::cpu::solve::Status;
@@ -26,6 +30,8 @@ const SLICE_CANDIDATES: usize = 1 << 20;
 const POINT_CHUNK: usize = 128;
 /// Most new vertices a level evaluates and caches at once (a stop is heeded between).
 const VERTEX_PIECE: usize = 1 << 18;
+/// Fewest deferred vertices per parallel work item (lookups in the whole cache).
+const VERTEX_LOOKUPS: usize = 1024;
 
 /// A k-simplex to test: the facet of cofacet tau number `via` of frontier simplex `from`
 /// that lacks tau's vertex `drop`. Tau's new vertex sits at `apex_at` and has cache index
@@ -130,6 +136,9 @@ struct Namer<'e, 'a, const W: usize> {
 
 struct Work<'e, 'a, const W: usize> {
     engine: &'e Engine<'a, W>,
+    /// In a breadth-first run, this thread's table of the last levels' vertices, where
+    /// cofacets' new vertices are looked up (elsewhere, the whole cache).
+    recent: Option<MutexGuard<'e, RecentVertices<W>>>,
     pivot: Pivot,
     facet: Simplex,
     key: Key<W>,
@@ -156,6 +165,7 @@ impl<'e, 'a, const W: usize> Namer<'e, 'a, W> {
             tau: blank.clone(),
             work: Work {
                 engine,
+                recent: None,
                 pivot: Pivot::new(engine.ctx.k),
                 facet: blank,
                 key: [0; W],
@@ -266,8 +276,16 @@ impl<const W: usize> Work<'_, '_, W> {
                     return Ok(());
                 }
                 e.ctx.codec.encode_vertex_w(&self.v[..d], &mut self.key)?;
-                match e.verts.find(&self.key) {
-                    Some(a) => a as u32,
+                // In a breadth-first run only the last levels' vertices are looked up here;
+                // the others are deferred and looked up in the whole cache once each.
+                let cached = match &self.recent {
+                    Some(recent) => recent.get(&self.key),
+                    None => e.verts.find(&self.key).map(|a| a as u32),
+                };
+                #[cfg(test)]
+                let cached = cached.filter(|_| self.recent.is_none() || !e.ctx.forget_vertices);
+                match cached {
+                    Some(a) => a,
                     None => {
                         self.out.deferred.push(Deferred {
                             from,
@@ -452,16 +470,17 @@ impl<const W: usize> Engine<'_, W> {
             let mut named = next
                 .take()
                 .expect("each slice is named before it is decided")?;
-            held += (named.cands.len() + 2 * named.deferred.len()) * per_cand
-                + named.pivots.len() * size_of::<f64>();
-            // The level's new simplices: about as many as the frontier's (a manifold's levels
-            // grow slowly), twice that to be safe.
-            if self.must_stop_growing(held, 2 * len) {
-                return Ok(None);
-            }
             self.name_deferred(frontier, &mut named)?;
             // Naming stops short when a signal comes: the slice is incomplete.
             if self.signalled() {
+                return Ok(None);
+            }
+            // Counted from the candidates, whose number does not depend on the threads (the
+            // deferred cofacets' does: see `Levels::vertices`).
+            held += named.cands.len() * per_cand;
+            // The level's new simplices: about as many as the frontier's (a manifold's levels
+            // grow slowly), twice that to be safe.
+            if self.must_stop_growing(held, 2 * len) {
                 return Ok(None);
             }
             self.stats.pivot_fallbacks += named.fallbacks;
@@ -508,6 +527,10 @@ impl<const W: usize> Engine<'_, W> {
         let parts = par_ranges(slice.len(), SIGMA_CHUNK, |r| -> Result<Named<W>> {
             // Commonly under two new candidates and one deferred cofacet per simplex.
             let mut namer = Namer::new(self, frontier, 2 * r.len(), r.len());
+            namer.work.recent = (self.levels.as_ref()).and_then(|l| {
+                let from = l.recent_from()?;
+                Some(l.vertices.mine(&self.verts, from))
+            });
             for i in r {
                 // A stop asked for meanwhile: the caller drops this slice unfinished.
                 if self.ctx.interrupted() {
@@ -537,24 +560,50 @@ impl<const W: usize> Engine<'_, W> {
         let deferred = std::mem::take(&mut named.deferred);
         let pivots = std::mem::take(&mut named.pivots);
         let loaded = std::mem::take(&mut named.loaded);
-        // The distinct new vertices in key order, cached in that order: each deferred
-        // cofacet's new vertex gets the cache index its rank gives, with no lookup.
+        // The distinct vertices in key order. Those not cached yet (in a breadth-first run
+        // naming looked up only the last levels' vertices) are cached in that order: each
+        // gets the cache index its rank among them gives.
         let mut by_vertex: Vec<(Key<W>, u32)> = deferred
             .iter()
             .enumerate()
             .map(|(i, t)| (t.vertex, i as u32))
             .collect();
         sort(&mut by_vertex);
-        let start = self.verts.len();
-        let mut keys: Vec<Key<W>> = Vec::with_capacity(by_vertex.len());
-        let mut apex = vec![0u32; deferred.len()];
+        let mut distinct: Vec<Key<W>> = Vec::with_capacity(by_vertex.len());
+        let mut which = vec![0u32; deferred.len()];
         for (i, (v, t)) in by_vertex.iter().enumerate() {
             if i == 0 || by_vertex[i - 1].0 != *v {
-                keys.push(*v);
+                distinct.push(*v);
             }
-            apex[*t as usize] = (start + keys.len() - 1) as u32;
+            which[*t as usize] = (distinct.len() - 1) as u32;
         }
         drop(by_vertex);
+        let recent = (self.levels.as_ref()).and_then(|l| l.recent_from());
+        let cached: Vec<Option<usize>> = if recent.is_some() {
+            let verts = &self.verts;
+            distinct
+                .par_iter()
+                .with_min_len(VERTEX_LOOKUPS)
+                .map(|v| verts.find(v))
+                .collect()
+        } else {
+            vec![None; distinct.len()]
+        };
+        let start = self.verts.len();
+        let mut keys: Vec<Key<W>> = Vec::with_capacity(distinct.len());
+        let index: Vec<u32> = distinct
+            .iter()
+            .zip(&cached)
+            .map(|(v, c)| match c {
+                Some(a) => *a as u32,
+                None => {
+                    keys.push(*v);
+                    (start + keys.len() - 1) as u32
+                }
+            })
+            .collect();
+        drop(distinct);
+        let apex: Vec<u32> = which.iter().map(|&j| index[j as usize]).collect();
         // In pieces, between which a stop is heeded (the caller then drops the slice).
         for piece in keys.chunks(VERTEX_PIECE) {
             if self.ctx.interrupted() {

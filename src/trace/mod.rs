@@ -22,6 +22,7 @@ mod engine;
 mod frontier;
 mod level;
 mod oracle;
+mod recent;
 mod region;
 mod sample;
 pub mod scan;
@@ -301,6 +302,10 @@ pub(crate) struct TraceContext<'a> {
     /// Makes the pivot name a wrong facet, to test the fallback (unit tests only).
     #[cfg(test)]
     pub scramble_pivots: bool,
+    /// Makes naming find no vertex in the last levels' tables, to test the lookups of the
+    /// deferred ones in the whole cache (unit tests only).
+    #[cfg(test)]
+    pub forget_vertices: bool,
 }
 
 impl TraceContext<'_> {
@@ -373,6 +378,8 @@ fn context<'a>(
         progress: opts.progress,
         #[cfg(test)]
         scramble_pivots: false,
+        #[cfg(test)]
+        forget_vertices: false,
     })
 }
 
@@ -505,6 +512,49 @@ mod tests {
                     "{name}: the samples differ"
                 );
                 assert_eq!(right.points(), other.points(), "{name}");
+            }
+        }
+    }
+
+    #[test]
+    fn vertices_missed_in_the_last_levels_are_found_in_the_whole_cache() {
+        for (name, edge) in [("sphere", 0.1), ("flat-torus", 0.3), ("3-torus", 0.8)] {
+            let mut p = preset(name, &[]).unwrap();
+            p.triangulation.edge = Some(edge);
+            let tri = p.triangulation.build(p.dim()).unwrap();
+            let oracle = CpuOracle::new(&p.system);
+            let opts = TraceOptions {
+                seeds: p.seeds.clone(),
+                ..TraceOptions::default()
+            };
+            let right = trace(&p.system, &tri, &oracle, &opts).unwrap();
+            let seeds: Vec<Vec<f64>> = p
+                .seeds
+                .iter()
+                .map(|s| crate::expr::newton_project(&p.system, s, SEED_TOLERANCE).unwrap())
+                .collect();
+            let sliced = Sliced(CpuOracle::new(&p.system));
+            for o in [&oracle as &dyn Oracle, &sliced] {
+                let mut ctx = context(&p.system, &tri, o, &opts).unwrap();
+                ctx.forget_vertices = true;
+                let words = ctx.codec.words();
+                let forgot = with_width!(words, trace_with(&p.system, ctx, &seeds, 0, 1)).unwrap();
+                assert_eq!(right.len(), forgot.len(), "{name}");
+                assert!(
+                    (0..right.len()).all(|i| right.key(i) == forgot.key(i)),
+                    "{name}: the samples differ"
+                );
+                assert_eq!(right.points(), forgot.points(), "{name}");
+                // Each vertex evaluated once: none cached twice.
+                assert_eq!(right.stats.vertices, forgot.stats.vertices, "{name}");
+                assert_eq!(
+                    right.stats.cpu_vertex_evaluations, forgot.stats.cpu_vertex_evaluations,
+                    "{name}"
+                );
+                assert_eq!(
+                    right.stats.oracle_calls, forgot.stats.oracle_calls,
+                    "{name}"
+                );
             }
         }
     }
