@@ -465,96 +465,83 @@ mod tests {
     use super::*;
     use crate::expr::preset;
 
+    /// Preset `name` traced at `edge` by the CPU oracle, then twice more with its context
+    /// changed by `alter`: with whole levels, and with levels decided in slices of 5 frontier
+    /// simplices.
+    fn traced_with(
+        name: &str,
+        edge: f64,
+        alter: impl Fn(&mut TraceContext<'_>),
+    ) -> (Sample, [Sample; 2]) {
+        let mut p = preset(name, &[]).unwrap();
+        p.triangulation.edge = Some(edge);
+        let tri = p.triangulation.build(p.dim()).unwrap();
+        let oracle = CpuOracle::new(&p.system);
+        let opts = TraceOptions {
+            seeds: p.seeds.clone(),
+            ..TraceOptions::default()
+        };
+        let plain = trace(&p.system, &tri, &oracle, &opts).unwrap();
+        let seeds: Vec<Vec<f64>> = p
+            .seeds
+            .iter()
+            .map(|s| crate::expr::newton_project(&p.system, s, SEED_TOLERANCE).unwrap())
+            .collect();
+        let sliced = Sliced(CpuOracle::new(&p.system));
+        let altered = [&oracle as &dyn Oracle, &sliced].map(|o| {
+            let mut ctx = context(&p.system, &tri, o, &opts).unwrap();
+            alter(&mut ctx);
+            let words = ctx.codec.words();
+            with_width!(words, trace_with(&p.system, ctx, &seeds, 0, 1)).unwrap()
+        });
+        (plain, altered)
+    }
+
+    /// Whether `a` and `b` hold the same simplices in the same order, with the same points.
+    fn assert_same_sample(a: &Sample, b: &Sample, name: &str) {
+        assert_eq!(a.len(), b.len(), "{name}");
+        assert!(
+            (0..a.len()).all(|i| a.key(i) == b.key(i)),
+            "{name}: the samples differ"
+        );
+        assert_eq!(a.points(), b.points(), "{name}");
+    }
+
     /// Where the pivot names a wrong facet, the oracle rejects it and every facet of its
     /// cofacet is tested: the trace is the same, in the same order.
     #[test]
     fn wrong_pivots_fall_back_to_testing_every_facet() {
-        for (name, params, edge) in [
-            ("sphere", vec![], 0.2),
-            ("flat-torus", vec![], 0.3),
-            ("3-torus", vec![], 0.8),
-        ] {
-            let mut p = preset(name, &params).unwrap();
-            p.triangulation.edge = Some(edge);
-            let tri = p.triangulation.build(p.dim()).unwrap();
-            let oracle = CpuOracle::new(&p.system);
-            let opts = TraceOptions {
-                seeds: p.seeds.clone(),
-                ..TraceOptions::default()
-            };
-            let right = trace(&p.system, &tri, &oracle, &opts).unwrap();
+        for (name, edge) in [("sphere", 0.2), ("flat-torus", 0.3), ("3-torus", 0.8)] {
+            let (right, [wrong, wrong_sliced]) =
+                traced_with(name, edge, |c| c.scramble_pivots = true);
             assert_eq!(right.stats.pivot_fallbacks, 0, "{name}");
-            let mut ctx = context(&p.system, &tri, &oracle, &opts).unwrap();
-            ctx.scramble_pivots = true;
-            let seeds: Vec<Vec<f64>> = p
-                .seeds
-                .iter()
-                .map(|s| crate::expr::newton_project(&p.system, s, SEED_TOLERANCE).unwrap())
-                .collect();
-            let words = ctx.codec.words();
-            let wrong = with_width!(words, trace_with(&p.system, ctx, &seeds, 0, 1)).unwrap();
             assert!(wrong.stats.pivot_fallbacks > 0, "{name}: no fallback");
-            // The same with levels decided in slices of 5 frontier simplices.
-            let sliced = Sliced(CpuOracle::new(&p.system));
-            let mut ctx = context(&p.system, &tri, &sliced, &opts).unwrap();
-            ctx.scramble_pivots = true;
-            let wrong_sliced =
-                with_width!(words, trace_with(&p.system, ctx, &seeds, 0, 1)).unwrap();
             assert_eq!(
                 wrong.stats.pivot_fallbacks, wrong_sliced.stats.pivot_fallbacks,
                 "{name}"
             );
             assert_eq!(wrong.stats.oracle_calls, wrong_sliced.stats.oracle_calls);
             for other in [&wrong, &wrong_sliced] {
-                assert_eq!(right.len(), other.len(), "{name}");
-                assert!(
-                    (0..right.len()).all(|i| right.key(i) == other.key(i)),
-                    "{name}: the samples differ"
-                );
-                assert_eq!(right.points(), other.points(), "{name}");
+                assert_same_sample(&right, other, name);
             }
         }
     }
 
+    /// Where naming finds no vertex in its thread's table of the last levels' vertices, the
+    /// deferred vertices are found in the whole cache: the trace is the same, and each
+    /// vertex is cached and evaluated once.
     #[test]
     fn vertices_missed_in_the_last_levels_are_found_in_the_whole_cache() {
         for (name, edge) in [("sphere", 0.1), ("flat-torus", 0.3), ("3-torus", 0.8)] {
-            let mut p = preset(name, &[]).unwrap();
-            p.triangulation.edge = Some(edge);
-            let tri = p.triangulation.build(p.dim()).unwrap();
-            let oracle = CpuOracle::new(&p.system);
-            let opts = TraceOptions {
-                seeds: p.seeds.clone(),
-                ..TraceOptions::default()
-            };
-            let right = trace(&p.system, &tri, &oracle, &opts).unwrap();
-            let seeds: Vec<Vec<f64>> = p
-                .seeds
-                .iter()
-                .map(|s| crate::expr::newton_project(&p.system, s, SEED_TOLERANCE).unwrap())
-                .collect();
-            let sliced = Sliced(CpuOracle::new(&p.system));
-            for o in [&oracle as &dyn Oracle, &sliced] {
-                let mut ctx = context(&p.system, &tri, o, &opts).unwrap();
-                ctx.forget_vertices = true;
-                let words = ctx.codec.words();
-                let forgot = with_width!(words, trace_with(&p.system, ctx, &seeds, 0, 1)).unwrap();
-                assert_eq!(right.len(), forgot.len(), "{name}");
-                assert!(
-                    (0..right.len()).all(|i| right.key(i) == forgot.key(i)),
-                    "{name}: the samples differ"
-                );
-                assert_eq!(right.points(), forgot.points(), "{name}");
-                // Each vertex evaluated once: none cached twice.
-                assert_eq!(right.stats.vertices, forgot.stats.vertices, "{name}");
+            let (right, forgot) = traced_with(name, edge, |c| c.forget_vertices = true);
+            for other in &forgot {
+                assert_same_sample(&right, other, name);
+                assert_eq!(right.stats.vertices, other.stats.vertices, "{name}");
                 assert_eq!(
-                    right.stats.cpu_vertex_evaluations, forgot.stats.cpu_vertex_evaluations,
+                    right.stats.cpu_vertex_evaluations, other.stats.cpu_vertex_evaluations,
                     "{name}"
                 );
-                assert_eq!(
-                    right.stats.oracle_calls, forgot.stats.oracle_calls,
-                    "{name}"
-                );
+                assert_eq!(right.stats.oracle_calls, other.stats.oracle_calls, "{name}");
             }
         }
     }
