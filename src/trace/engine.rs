@@ -70,9 +70,9 @@ pub(crate) struct Levels<const W: usize> {
 const RECENT_VERTICES: usize = 1 << 14;
 
 /// Levels whose new vertices [`Levels::vertices`] keeps, for codimension `k`. A cofacet's
-/// new vertex, when cached, was nearly always cached in the last 2k + 1 levels (counted on
-/// the presets: the last 3 for surfaces in R^3, 6 for the flat torus in R^4, and 99% within
-/// 8 for the 3-torus); the rest are found in the whole cache.
+/// new vertex, when cached, was nearly always cached in the last 2k + 2 levels (counted on
+/// the presets: all but a few in the last 3 for surfaces in R^3, 6 for the flat torus in
+/// R^4, and 99% within 8 for the 3-torus); the rest are found in the whole cache.
 pub(crate) fn recent_levels(k: usize) -> usize {
     2 * k + 2
 }

@@ -578,8 +578,10 @@ impl<const W: usize> Engine<'_, W> {
             which[*t as usize] = (distinct.len() - 1) as u32;
         }
         drop(by_vertex);
-        let recent = (self.levels.as_ref()).and_then(|l| l.recent_from());
-        let cached: Vec<Option<usize>> = if recent.is_some() {
+        // Where naming looked only in the last levels' tables, a deferred vertex may be
+        // cached already (by an older level); elsewhere it was looked up and is new.
+        let naming_used_tables = (self.levels.as_ref()).is_some_and(|l| l.recent_from().is_some());
+        let cached: Vec<Option<usize>> = if naming_used_tables {
             let verts = &self.verts;
             distinct
                 .par_iter()
