@@ -189,13 +189,23 @@ fn random_expressions_emit_valid_wgsl_and_round_trip() {
             }
         }
         // Text form parses back to the same tree, and batch evaluation (fused instructions,
-        // more points than one chunk of lanes) equals the tree bit for bit.
+        // more points than one chunk of lanes) and evaluation at one point (one lane) equal
+        // the tree bit for bit.
         let scope = Scope::new(d);
         let n = 1 + rng.random_range(0..150);
         let xs: Vec<f64> = (0..n * d).map(|_| rng.random_range(-2.0..2.0)).collect();
         let mut out = vec![0.0; n * k];
         prog.eval_batch(&xs, &mut out, &mut scratch);
+        let mut alone = vec![0.0; k];
         for (p, x) in xs.chunks_exact(d).enumerate() {
+            prog.eval_batch(x, &mut alone, &mut scratch);
+            for (o, (a, c)) in alone.iter().zip(&out[p * k..(p + 1) * k]).enumerate() {
+                assert!(
+                    a.to_bits() == c.to_bits() || (a.is_nan() && c.is_nan()),
+                    "one point {a} vs batch {c} for {} at point {p}",
+                    exprs[o]
+                );
+            }
             for (o, e) in exprs.iter().enumerate() {
                 let b = e.eval(x);
                 if p == 0 {

@@ -67,6 +67,8 @@ pub struct Program {
 #[derive(Clone, Debug, Default)]
 pub struct Scratch {
     regs: Vec<[f64; LANES]>,
+    /// One lane, for a single point.
+    one: Vec<[f64; 1]>,
 }
 
 struct Builder {
@@ -251,14 +253,31 @@ impl Program {
             n * k,
             "output buffer must hold n * outputs values"
         );
-        scratch.regs.resize(self.n_regs.max(1), [0.0; LANES]);
-        let regs = &mut scratch.regs;
+        // One point (a Newton step, the gradient at a polygon's centre) runs on one lane: the
+        // same operations on the same values, so the same result, without 63 idle lanes.
+        if n == 1 {
+            self.eval_lanes(points, out, &mut scratch.one);
+        } else {
+            self.eval_lanes(points, out, &mut scratch.regs);
+        }
+    }
+
+    /// [`Program::eval_batch`] over `L` lanes at a time.
+    fn eval_lanes<const L: usize>(
+        &self,
+        points: &[f64],
+        out: &mut [f64],
+        regs: &mut Vec<[f64; L]>,
+    ) {
+        let (d, k) = (self.dim, self.outputs.len());
+        let n = points.len().checked_div(d).unwrap_or(0);
+        regs.resize(self.n_regs.max(1), [0.0; L]);
         for &(r, v) in &self.consts {
-            regs[r as usize] = [v; LANES];
+            regs[r as usize] = [v; L];
         }
         let mut start = 0;
         while start < n {
-            let lanes = LANES.min(n - start);
+            let lanes = L.min(n - start);
             load(&mut regs[..d], &points[start * d..(start + lanes) * d]);
             self.run(regs);
             store(
@@ -271,7 +290,7 @@ impl Program {
     }
 
     /// Runs every instruction over all lanes.
-    fn run(&self, regs: &mut [[f64; LANES]]) {
+    fn run<const L: usize>(&self, regs: &mut [[f64; L]]) {
         let base = regs.as_mut_ptr();
         let n = regs.len();
         for ins in &self.instrs {
@@ -307,10 +326,10 @@ impl Program {
                     _ => apply(out, post, |j| op.apply(c, a[j])),
                 },
                 Core::Bin(op, x, y) => match (x.square, y.square) {
-                    (false, false) => bin::<false, false>(out, a, b, op, post),
-                    (true, false) => bin::<true, false>(out, a, b, op, post),
-                    (false, true) => bin::<false, true>(out, a, b, op, post),
-                    (true, true) => bin::<true, true>(out, a, b, op, post),
+                    (false, false) => bin::<false, false, L>(out, a, b, op, post),
+                    (true, false) => bin::<true, false, L>(out, a, b, op, post),
+                    (false, true) => bin::<false, true, L>(out, a, b, op, post),
+                    (true, true) => bin::<true, true, L>(out, a, b, op, post),
                 },
             }
         }
@@ -509,25 +528,25 @@ fn fuse(nodes: &[Node], outputs: &[u32]) -> Vec<Planned> {
 }
 
 /// Transposes rows of points into the variable registers (one register per coordinate).
-fn load(vars: &mut [[f64; LANES]], rows: &[f64]) {
+fn load<const L: usize>(vars: &mut [[f64; L]], rows: &[f64]) {
     /// The same with the dimension known at compile time, so the inner loop unrolls.
-    fn fixed<const D: usize>(vars: &mut [[f64; LANES]], rows: &[f64]) {
-        let vars: &mut [[f64; LANES]; D] = vars.try_into().expect("D registers");
-        for (j, p) in rows.chunks_exact(D).enumerate().take(LANES) {
+    fn fixed<const D: usize, const L: usize>(vars: &mut [[f64; L]], rows: &[f64]) {
+        let vars: &mut [[f64; L]; D] = vars.try_into().expect("D registers");
+        for (j, p) in rows.chunks_exact(D).enumerate().take(L) {
             for v in 0..D {
                 vars[v][j] = p[v];
             }
         }
     }
     match vars.len() {
-        1 => fixed::<1>(vars, rows),
-        2 => fixed::<2>(vars, rows),
-        3 => fixed::<3>(vars, rows),
-        4 => fixed::<4>(vars, rows),
-        5 => fixed::<5>(vars, rows),
-        6 => fixed::<6>(vars, rows),
-        7 => fixed::<7>(vars, rows),
-        8 => fixed::<8>(vars, rows),
+        1 => fixed::<1, L>(vars, rows),
+        2 => fixed::<2, L>(vars, rows),
+        3 => fixed::<3, L>(vars, rows),
+        4 => fixed::<4, L>(vars, rows),
+        5 => fixed::<5, L>(vars, rows),
+        6 => fixed::<6, L>(vars, rows),
+        7 => fixed::<7, L>(vars, rows),
+        8 => fixed::<8, L>(vars, rows),
         d => {
             for (j, p) in rows.chunks_exact(d).enumerate() {
                 for (v, &x) in p.iter().enumerate() {
@@ -539,21 +558,21 @@ fn load(vars: &mut [[f64; LANES]], rows: &[f64]) {
 }
 
 /// Transposes the output registers `outs` into rows of `outs.len()` values.
-fn store(regs: &[[f64; LANES]], outs: &[u32], rows: &mut [f64]) {
+fn store<const L: usize>(regs: &[[f64; L]], outs: &[u32], rows: &mut [f64]) {
     /// The same with the output count known at compile time.
-    fn fixed<const K: usize>(regs: &[[f64; LANES]], outs: &[u32], rows: &mut [f64]) {
-        let src: [&[f64; LANES]; K] = std::array::from_fn(|o| &regs[outs[o] as usize]);
-        for (j, row) in rows.chunks_exact_mut(K).enumerate().take(LANES) {
+    fn fixed<const K: usize, const L: usize>(regs: &[[f64; L]], outs: &[u32], rows: &mut [f64]) {
+        let src: [&[f64; L]; K] = std::array::from_fn(|o| &regs[outs[o] as usize]);
+        for (j, row) in rows.chunks_exact_mut(K).enumerate().take(L) {
             for o in 0..K {
                 row[o] = src[o][j];
             }
         }
     }
     match outs.len() {
-        1 => fixed::<1>(regs, outs, rows),
-        2 => fixed::<2>(regs, outs, rows),
-        3 => fixed::<3>(regs, outs, rows),
-        4 => fixed::<4>(regs, outs, rows),
+        1 => fixed::<1, L>(regs, outs, rows),
+        2 => fixed::<2, L>(regs, outs, rows),
+        3 => fixed::<3, L>(regs, outs, rows),
+        4 => fixed::<4, L>(regs, outs, rows),
         k => {
             for (o, &r) in outs.iter().enumerate() {
                 let r = &regs[r as usize];
@@ -566,17 +585,17 @@ fn store(regs: &[[f64; LANES]], outs: &[u32], rows: &mut [f64]) {
 }
 
 #[inline(always)]
-fn apply(out: &mut [f64; LANES], post: Post, f: impl Fn(usize) -> f64) {
+fn apply<const L: usize>(out: &mut [f64; L], post: Post, f: impl Fn(usize) -> f64) {
     match post {
-        Post::None => (0..LANES).for_each(|j| out[j] = f(j)),
-        Post::Add(c) => (0..LANES).for_each(|j| out[j] = f(j) + c),
-        Post::Sub(c) => (0..LANES).for_each(|j| out[j] = f(j) - c),
-        Post::Mul(c) => (0..LANES).for_each(|j| out[j] = f(j) * c),
+        Post::None => (0..L).for_each(|j| out[j] = f(j)),
+        Post::Add(c) => (0..L).for_each(|j| out[j] = f(j) + c),
+        Post::Sub(c) => (0..L).for_each(|j| out[j] = f(j) - c),
+        Post::Mul(c) => (0..L).for_each(|j| out[j] = f(j) * c),
     }
 }
 
 #[inline(always)]
-fn operand<const SQUARE: bool>(a: &[f64; LANES], j: usize) -> f64 {
+fn operand<const SQUARE: bool, const L: usize>(a: &[f64; L], j: usize) -> f64 {
     if SQUARE {
         a[j] * a[j]
     } else {
@@ -585,15 +604,15 @@ fn operand<const SQUARE: bool>(a: &[f64; LANES], j: usize) -> f64 {
 }
 
 #[inline(always)]
-fn bin<const SA: bool, const SB: bool>(
-    out: &mut [f64; LANES],
-    a: &[f64; LANES],
-    b: &[f64; LANES],
+fn bin<const SA: bool, const SB: bool, const L: usize>(
+    out: &mut [f64; L],
+    a: &[f64; L],
+    b: &[f64; L],
     op: Op2,
     post: Post,
 ) {
-    let x = |j| operand::<SA>(a, j);
-    let y = |j| operand::<SB>(b, j);
+    let x = |j| operand::<SA, L>(a, j);
+    let y = |j| operand::<SB, L>(b, j);
     match op {
         Op2::Add => apply(out, post, |j| x(j) + y(j)),
         Op2::Sub => apply(out, post, |j| x(j) - y(j)),
