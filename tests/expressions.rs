@@ -112,19 +112,27 @@ fn jacobians_agree_with_central_differences() {
         let p = preset(name, &[]).unwrap();
         let sys = &p.system;
         let (d, k) = (sys.ambient_dim(), sys.codim());
-        for _ in 0..50 {
-            let x: Vec<f64> = p.seeds[0]
-                .iter()
-                .map(|s| s + rng.random_range(-0.3..0.3))
-                .collect();
+        // The 50 points in one batch too: each row is that point's Jacobian, bit for bit.
+        let points: Vec<f64> = (0..50)
+            .flat_map(|_| {
+                let seed = p.seeds[0].iter();
+                seed.map(|s| s + rng.random_range(-0.3..0.3))
+                    .collect::<Vec<_>>()
+            })
+            .collect();
+        let mut batch = vec![0.0; 50 * k * d];
+        sys.jacobian_batch(&points, &mut batch);
+        for (x, row) in points.chunks_exact(d).zip(batch.chunks_exact(k * d)) {
             let mut j = vec![0.0; k * d];
-            sys.jacobian(&x, &mut j);
+            sys.jacobian(x, &mut j);
+            let bits = |v: &[f64]| v.iter().map(|a| a.to_bits()).collect::<Vec<_>>();
+            assert_eq!(bits(&j), bits(row), "{name}: a batch's Jacobian at {x:?}");
             let (mut fp, mut fm) = (vec![0.0; k], vec![0.0; k]);
             for c in 0..d {
                 let h = 1e-6;
-                let mut xp = x.clone();
+                let mut xp = x.to_vec();
                 xp[c] += h;
-                let mut xm = x.clone();
+                let mut xm = x.to_vec();
                 xm[c] -= h;
                 sys.eval_batch(&xp, &mut fp);
                 sys.eval_batch(&xm, &mut fm);

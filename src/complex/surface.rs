@@ -257,7 +257,9 @@ impl Surface {
         t
     }
 
-    /// Whether the component, with its flips, faces against the gradient of f overall.
+    /// Whether the component, with its flips, faces against the gradient of f overall: the
+    /// sum over its polygons of their normal (flipped where they are) dotted with the
+    /// gradient at their centre, the gradients taken in batches.
     fn against_gradient(
         &self,
         c: &Complex,
@@ -265,36 +267,49 @@ impl Surface {
         component: &[u32],
         flip: &[bool],
     ) -> bool {
+        /// Polygons per batch of gradients.
+        const BATCH: usize = 256;
         let score: f64 = component
-            .par_iter()
-            .map(|&p| {
-                let p = p as usize;
-                let poly = self.polygon(p);
-                let x0 = c.point(poly[0] as usize);
-                let mut n = [0.0; 3];
-                let mut centre = [0.0; 3];
-                for w in 0..poly.len() {
-                    let x = c.point(poly[w] as usize);
-                    for i in 0..3 {
-                        centre[i] += x[i] / poly.len() as f64;
-                    }
-                    if w >= 1 && w + 1 < poly.len() {
-                        let (a, b) = (c.point(poly[w] as usize), c.point(poly[w + 1] as usize));
-                        let u = [a[0] - x0[0], a[1] - x0[1], a[2] - x0[2]];
-                        let v = [b[0] - x0[0], b[1] - x0[1], b[2] - x0[2]];
-                        n[0] += u[1] * v[2] - u[2] * v[1];
-                        n[1] += u[2] * v[0] - u[0] * v[2];
-                        n[2] += u[0] * v[1] - u[1] * v[0];
+            .par_chunks(BATCH)
+            .map(|chunk| {
+                let mut normals = vec![0.0; chunk.len() * 3];
+                let mut centres = vec![0.0; chunk.len() * 3];
+                for ((&p, n), centre) in chunk
+                    .iter()
+                    .zip(normals.chunks_exact_mut(3))
+                    .zip(centres.chunks_exact_mut(3))
+                {
+                    let poly = self.polygon(p as usize);
+                    let x0 = c.point(poly[0] as usize);
+                    for w in 0..poly.len() {
+                        let x = c.point(poly[w] as usize);
+                        for i in 0..3 {
+                            centre[i] += x[i] / poly.len() as f64;
+                        }
+                        if w >= 1 && w + 1 < poly.len() {
+                            let (a, b) = (c.point(poly[w] as usize), c.point(poly[w + 1] as usize));
+                            let u = [a[0] - x0[0], a[1] - x0[1], a[2] - x0[2]];
+                            let v = [b[0] - x0[0], b[1] - x0[1], b[2] - x0[2]];
+                            n[0] += u[1] * v[2] - u[2] * v[1];
+                            n[1] += u[2] * v[0] - u[0] * v[2];
+                            n[2] += u[0] * v[1] - u[1] * v[0];
+                        }
                     }
                 }
-                let mut g = [0.0; 3];
-                f.jacobian(&centre, &mut g);
-                let s = n[0] * g[0] + n[1] * g[1] + n[2] * g[2];
-                if flip[p] {
-                    -s
-                } else {
-                    s
-                }
+                let mut g = vec![0.0; chunk.len() * 3];
+                f.jacobian_batch(&centres, &mut g);
+                chunk
+                    .iter()
+                    .zip(normals.chunks_exact(3).zip(g.chunks_exact(3)))
+                    .map(|(&p, (n, g))| {
+                        let s = n[0] * g[0] + n[1] * g[1] + n[2] * g[2];
+                        if flip[p as usize] {
+                            -s
+                        } else {
+                            s
+                        }
+                    })
+                    .sum::<f64>()
             })
             .sum();
         score < 0.0

@@ -36,6 +36,14 @@ pub trait ImplicitFunction: Send + Sync {
             }
         }
     }
+    /// The Jacobians at n points (`points`: n rows of d) into `out` (n rows of k x d, each
+    /// row-major); default: [`jacobian`](Self::jacobian) at each point.
+    fn jacobian_batch(&self, points: &[f64], out: &mut [f64]) {
+        let (d, k) = (self.ambient_dim(), self.codim());
+        for (x, o) in points.chunks_exact(d).zip(out.chunks_exact_mut(k * d)) {
+            self.jacobian(x, o);
+        }
+    }
     /// Whether calls of [`eval_batch`](Self::eval_batch) run one at a time whatever the
     /// thread (f behind a lock, such as a Python function under the GIL): the CPU oracle then
     /// gives it each batch whole instead of in parallel chunks.
@@ -283,6 +291,9 @@ impl ImplicitFunction for EquationSystem {
     }
     fn jacobian(&self, x: &[f64], out: &mut [f64]) {
         SCRATCH.with(|s| self.jacobian.eval_batch(x, out, &mut s.borrow_mut()));
+    }
+    fn jacobian_batch(&self, points: &[f64], out: &mut [f64]) {
+        SCRATCH.with(|s| self.jacobian.eval_batch(points, out, &mut s.borrow_mut()));
     }
     fn system(&self) -> Option<&EquationSystem> {
         Some(self)
