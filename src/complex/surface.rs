@@ -259,7 +259,8 @@ impl Surface {
 
     /// Whether the component, with its flips, faces against the gradient of f overall: the
     /// sum over its polygons of their normal (flipped where they are) dotted with the
-    /// gradient at their centre, the gradients taken in batches.
+    /// gradient at their centre, the gradients taken in batches. The batches' sums are added
+    /// in order, so that the sign does not depend on the threads.
     fn against_gradient(
         &self,
         c: &Complex,
@@ -269,7 +270,7 @@ impl Surface {
     ) -> bool {
         /// Polygons per batch of gradients.
         const BATCH: usize = 256;
-        let score: f64 = component
+        let sums: Vec<f64> = component
             .par_chunks(BATCH)
             .map(|chunk| {
                 let mut normals = vec![0.0; chunk.len() * 3];
@@ -311,8 +312,8 @@ impl Surface {
                     })
                     .sum::<f64>()
             })
-            .sum();
-        score < 0.0
+            .collect();
+        sums.iter().sum::<f64>() < 0.0
     }
 }
 
