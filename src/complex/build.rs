@@ -5,10 +5,11 @@ use std::time::Instant;
 
 use rayon::prelude::*;
 
+use super::packed::{par_sort_distinct, Packer};
 use super::{Complex, ComplexStats, Level};
 use crate::error::{Error, Result};
 use crate::trace::{with_width, Domain, Sample};
-use crate::triangulation::KeyCodec;
+use crate::triangulation::{KeyCodec, MAX_DIM};
 
 /// The cells of one dimension before clipping: their facets (indices one level lower),
 /// whether they have both an inside and an outside crossing, and (when kept) their keys.
@@ -43,8 +44,10 @@ pub(super) fn build(
     // Cofaces reach one lattice step beyond their faces: one more bit keeps them encodable.
     let bits = (codec.coord_bits() + 1).min(32);
     let words = KeyCodec::new(d, d, bits)?.words().max(codec.words());
-    let (mut raw, defects) =
-        with_width!(words, raw_levels(s, bits, max_memory, cancel, keep_keys))?;
+    let (mut raw, defects) = with_width!(
+        words,
+        raw_levels(s, bits, max_memory, cancel, keep_keys, true)
+    )?;
     let keys = keep_keys.then(|| CellKeys {
         words,
         keys: raw
@@ -64,13 +67,15 @@ pub(super) fn build(
 
 /// The unclipped levels 1..=m: level j holds the cofacets of level j - 1 (level 0: S, then
 /// the rim), grouped. A 1-cell needs a vertex in S, and exactly two crossed facets; the
-/// edges left out are returned as their first vertex in S.
+/// edges left out are returned as their first vertex in S. With `packing`, a level's pairs
+/// are packed into u64s where they fit ([`Packer`]); the cells are the same either way.
 fn raw_levels<const W: usize>(
     s: &Sample,
     bits: u32,
     max_memory: u64,
     cancel: Option<&AtomicBool>,
     keep_keys: bool,
+    packing: bool,
 ) -> Result<(Vec<RawLevel>, Vec<u32>)> {
     let codec = *s.codec();
     let (d, k) = (codec.ambient_dim(), codec.simplex_dim());
@@ -94,11 +99,14 @@ fn raw_levels<const W: usize>(
             ));
         }
         let cj = KeyCodec::new(d, k + j, bits)?;
+        // A cofacet's base vertex is one of its faces' or one step below it.
+        let (lo, hi) = base_bounds(&prev, &prev_codec, 1);
+        let packer = Packer::<W>::new(&cj, &lo, &hi, prev.len()).filter(|_| packing);
         // The pairs are the peak: refuse up front rather than exhaust memory.
         let counts = cofacet_counts(&prev, &prev_codec);
         let count: u64 = counts.iter().sum();
         let need = crate::memory::in_use(held_bytes::<W>(&levels, prev.len()) + s.memory_bytes())
-            + peak_bytes::<W>(count);
+            + peak_bytes::<W>(count, packer.is_some());
         if need > max_memory {
             return Err(Error::Trace(format!(
                 "the cell complex needs about {} for its {j}-cells, over the memory limit of {} \
@@ -107,12 +115,24 @@ fn raw_levels<const W: usize>(
                 crate::memory::human_bytes(max_memory)
             )));
         }
-        let mut pairs = cofacet_pairs::<W>(&prev, &prev_codec, &cj, &counts)?;
-        pairs.par_sort_unstable();
-        let run = run_len(pairs.len());
+        let run = run_len(count as usize);
+        let packed = match &packer {
+            Some(p) => cofacet_pairs(&prev, &prev_codec, &cj, &counts, 0, |key, i| p.pack(key, i))?,
+            None => None,
+        };
         // All interior: clipping adds the boundary cells.
-        let (keys, cells, mixed) = group_cofacets(&pairs, &prev_mixed, (j, n), run, &mut defects);
-        drop(pairs);
+        let (keys, cells, mixed) = if let (Some(mut pairs), Some(p)) = (packed, &packer) {
+            par_sort_distinct(&mut pairs);
+            group_cofacets(&pairs, p, &prev_mixed, (j, n), run, &mut defects)
+        } else {
+            let zero = ([0u64; W], 0u32);
+            let mut pairs = cofacet_pairs(&prev, &prev_codec, &cj, &counts, zero, |key, i| {
+                Some((*key, i))
+            })?
+            .expect("wide pairs take any key");
+            pairs.par_sort_unstable();
+            group_cofacets(&pairs, &Wide, &prev_mixed, (j, n), run, &mut defects)
+        };
         let kept = if keep_keys {
             keys.iter().flatten().copied().collect()
         } else {
@@ -141,9 +161,91 @@ fn held_bytes<const W: usize>(levels: &[RawLevel], prev: usize) -> usize {
 }
 
 /// Bytes that building a level from `cofacets` cofacets adds at its peak: the (key, index)
-/// pairs, and for the new level at most as many keys, facet indices and mixed flags.
-fn peak_bytes<const W: usize>(cofacets: u64) -> u64 {
-    cofacets * (std::mem::size_of::<([u64; W], u32)>() + W * 8 + 5) as u64
+/// pairs (`packed`: a u64 each, and as much again to sort them), and for the new level at
+/// most as many keys, facet indices and mixed flags.
+fn peak_bytes<const W: usize>(cofacets: u64, packed: bool) -> u64 {
+    let pair = if packed {
+        16
+    } else {
+        std::mem::size_of::<([u64; W], u32)>()
+    };
+    cofacets * (pair + W * 8 + 5) as u64
+}
+
+/// The least and the greatest base vertex coordinates of the simplices `keys`, widened by
+/// `margin` lattice steps.
+fn base_bounds<const W: usize>(
+    keys: &[[u64; W]],
+    codec: &KeyCodec,
+    margin: i32,
+) -> (Vec<i32>, Vec<i32>) {
+    let d = codec.ambient_dim();
+    let (lo, hi) = keys
+        .par_chunks(CHUNK)
+        .map(|chunk| {
+            let (mut lo, mut hi) = ([i32::MAX; MAX_DIM], [i32::MIN; MAX_DIM]);
+            let mut v = [0i32; MAX_DIM];
+            for key in chunk {
+                codec.decode_vertex(key, &mut v[..d]);
+                for i in 0..d {
+                    lo[i] = lo[i].min(v[i]);
+                    hi[i] = hi[i].max(v[i]);
+                }
+            }
+            (lo, hi)
+        })
+        .reduce(
+            || ([i32::MAX; MAX_DIM], [i32::MIN; MAX_DIM]),
+            |(mut lo, mut hi), (a, b)| {
+                for i in 0..d {
+                    lo[i] = lo[i].min(a[i]);
+                    hi[i] = hi[i].max(b[i]);
+                }
+                (lo, hi)
+            },
+        );
+    (
+        lo[..d].iter().map(|x| x.saturating_sub(margin)).collect(),
+        hi[..d].iter().map(|x| x.saturating_add(margin)).collect(),
+    )
+}
+
+/// How a sorted list of (cofacet key, facet index) pairs of type `P` is read.
+trait ReadPairs<P, const W: usize>: Sync {
+    /// What equal cofacets share.
+    type Group: PartialEq;
+    fn group(&self, pair: &P) -> Self::Group;
+    fn index(&self, pair: &P) -> u32;
+    fn key(&self, pair: &P) -> [u64; W];
+}
+
+/// Pairs as they are.
+struct Wide;
+
+impl<const W: usize> ReadPairs<([u64; W], u32), W> for Wide {
+    type Group = [u64; W];
+    fn group(&self, pair: &([u64; W], u32)) -> [u64; W] {
+        pair.0
+    }
+    fn index(&self, pair: &([u64; W], u32)) -> u32 {
+        pair.1
+    }
+    fn key(&self, pair: &([u64; W], u32)) -> [u64; W] {
+        pair.0
+    }
+}
+
+impl<const W: usize> ReadPairs<u64, W> for Packer<W> {
+    type Group = u64;
+    fn group(&self, pair: &u64) -> u64 {
+        pair >> self.index_bits()
+    }
+    fn index(&self, pair: &u64) -> u32 {
+        Packer::index(self, *pair)
+    }
+    fn key(&self, pair: &u64) -> [u64; W] {
+        Packer::key(self, *pair)
+    }
 }
 
 /// Simplices per parallel work item when listing cofacets.
@@ -168,21 +270,24 @@ fn cofacet_counts<const W: usize>(keys: &[[u64; W]], codec: &KeyCodec) -> Vec<u6
         .collect()
 }
 
-/// (cofacet key, index) for every cofacet of every simplex in `keys`; `counts` holds how
-/// many cofacets each [`CHUNK`] of them has. Written in place, chunk by chunk in parallel,
-/// so that no thread copies or first touches the whole list alone.
-fn cofacet_pairs<const W: usize>(
+/// `pair(cofacet key, index)` for every cofacet of every simplex in `keys`, or `None` where
+/// one gives none; `counts` holds how many cofacets each [`CHUNK`] of them has. Written in
+/// place, chunk by chunk in parallel, so that no thread copies or first touches the whole
+/// list alone.
+fn cofacet_pairs<const W: usize, P: Copy + Send + Sync>(
     keys: &[[u64; W]],
     codec: &KeyCodec,
     cofacet_codec: &KeyCodec,
     counts: &[u64],
-) -> Result<Vec<([u64; W], u32)>> {
+    zero: P,
+    pair: impl Fn(&[u64; W], u32) -> Option<P> + Sync,
+) -> Result<Option<Vec<P>>> {
     if keys.len() > u32::MAX as usize {
         return Err(Error::Trace("too many cells for 32-bit indices".into()));
     }
     let total = usize::try_from(counts.iter().sum::<u64>())
         .map_err(|_| Error::Trace("too many cofacets for this machine".into()))?;
-    let mut pairs = zeroed(total, ([0u64; W], 0u32));
+    let mut pairs = zeroed(total, zero);
     let mut outs = Vec::with_capacity(counts.len());
     let mut rest = &mut pairs[..];
     for &c in counts {
@@ -190,34 +295,56 @@ fn cofacet_pairs<const W: usize>(
         outs.push(out);
         rest = tail;
     }
-    keys.par_chunks(CHUNK).zip(outs).enumerate().try_for_each(
-        |(c, (chunk, out))| -> Result<()> {
+    let all = keys.par_chunks(CHUNK).zip(outs).enumerate().try_fold(
+        || true,
+        |all, (c, (chunk, out))| -> Result<bool> {
+            if !all {
+                return Ok(false);
+            }
             let mut sigma = codec.scratch();
             let mut at = 0;
-            for (j, key) in chunk.iter().enumerate() {
+            let mut key = [0u64; W];
+            // Keys of exactly W words take the 128-bit paths.
+            let (whole, cofacet_whole) = (codec.words() == W, cofacet_codec.words() == W);
+            for (j, k) in chunk.iter().enumerate() {
                 let i = (c * CHUNK + j) as u32;
                 let mut err = None;
-                codec.decode_into(key, &mut sigma);
+                if whole {
+                    codec.decode_into_w(k, &mut sigma);
+                } else {
+                    codec.decode_into(k, &mut sigma);
+                }
                 sigma.for_each_cofacet(|tau| {
                     if err.is_none() {
-                        match cofacet_codec.encode(tau, &mut out[at].0) {
-                            Ok(()) => {
-                                out[at].1 = i;
-                                at += 1;
-                            }
-                            Err(e) => err = Some(e),
+                        let encoded = if cofacet_whole {
+                            cofacet_codec.encode_masks_w(tau.base(), tau.parts(), &mut key)
+                        } else {
+                            cofacet_codec.encode(tau, &mut key)
+                        };
+                        match encoded {
+                            Ok(()) => match pair(&key, i) {
+                                Some(p) => {
+                                    out[at] = p;
+                                    at += 1;
+                                }
+                                None => err = Some(None),
+                            },
+                            Err(e) => err = Some(Some(e)),
                         }
                     }
                 });
-                if let Some(e) = err {
-                    return Err(e);
+                match err {
+                    Some(Some(e)) => return Err(e),
+                    Some(None) => return Ok(false),
+                    None => {}
                 }
             }
             debug_assert_eq!(at, out.len());
-            Ok(())
+            Ok(true)
         },
-    )?;
-    Ok(pairs)
+    );
+    let all = all.try_reduce(|| true, |a, b| Ok(a && b))?;
+    Ok(all.then_some(pairs))
 }
 
 /// The cells of level `j` from its sorted (cofacet key, facet index) `pairs`: their keys,
@@ -225,27 +352,29 @@ fn cofacet_pairs<const W: usize>(
 /// no vertex among the first `n` (S) are dropped and those without exactly two vertices are
 /// appended to `defects`. Grouped in parallel over runs of about `run` pairs that start at
 /// a new key, counted first and then written in place; the result does not depend on `run`.
-fn group_cofacets<const W: usize>(
-    pairs: &[([u64; W], u32)],
+fn group_cofacets<P: Sync, const W: usize>(
+    pairs: &[P],
+    read: &impl ReadPairs<P, W>,
     prev_mixed: &[bool],
     (j, n): (usize, usize),
     run: usize,
     defects: &mut Vec<u32>,
 ) -> (Vec<[u64; W]>, Level, Vec<bool>) {
     // A group is a cell, or dropped, or a defect.
-    let kind = |group: &[([u64; W], u32)]| {
-        if j == 1 && group.iter().all(|p| p.1 as usize >= n) {
+    let kind = |group: &[P]| {
+        if j == 1 && group.iter().all(|p| read.index(p) as usize >= n) {
             None
         } else {
             Some(j != 1 || group.len() == 2)
         }
     };
-    let runs = runs_of(pairs, run);
+    let same = |a: &P, b: &P| read.group(a) == read.group(b);
+    let runs = runs_of(pairs, run, same);
     // (cells, facets) of each run.
     let sizes: Vec<(usize, usize)> = runs
         .par_iter()
         .map(|run| {
-            run.chunk_by(|a, b| a.0 == b.0)
+            run.chunk_by(same)
                 .filter(|g| kind(g) == Some(true))
                 .fold((0, 0), |(c, f), g| (c + 1, f + g.len()))
         })
@@ -278,15 +407,15 @@ fn group_cofacets<const W: usize>(
         .map(|(run, (k, m, o, l, base))| {
             let (mut c, mut f) = (0, 0);
             let mut defects = Vec::new();
-            for group in run.chunk_by(|a, b| a.0 == b.0) {
+            for group in run.chunk_by(same) {
                 match kind(group) {
                     None => {}
-                    Some(false) => defects.push(group[0].1),
+                    Some(false) => defects.push(read.index(&group[0])),
                     Some(true) => {
-                        k[c] = group[0].0;
-                        m[c] = group.iter().any(|p| prev_mixed[p.1 as usize]);
+                        k[c] = read.key(&group[0]);
+                        m[c] = group.iter().any(|p| prev_mixed[read.index(p) as usize]);
                         for (slot, p) in l[f..f + group.len()].iter_mut().zip(group) {
-                            *slot = p.1;
+                            *slot = read.index(p);
                         }
                         f += group.len();
                         o[c] = base + f as u32;
@@ -317,14 +446,14 @@ fn run_len(len: usize) -> usize {
 }
 
 /// `sorted` cut into consecutive runs of at least `want` (at least 1) items, each cut
-/// where the key changes, so that no key spans two runs.
-fn runs_of<K: PartialEq, V>(sorted: &[(K, V)], want: usize) -> Vec<&[(K, V)]> {
+/// where the key changes (`same` tells items of one key), so that no key spans two runs.
+fn runs_of<T>(sorted: &[T], want: usize, same: impl Fn(&T, &T) -> bool) -> Vec<&[T]> {
     let want = want.max(1);
     let mut runs = Vec::new();
     let mut rest = sorted;
     while rest.len() > want {
         let mut cut = want;
-        while cut < rest.len() && rest[cut].0 == rest[cut - 1].0 {
+        while cut < rest.len() && same(&rest[cut], &rest[cut - 1]) {
             cut += 1;
         }
         let (run, tail) = rest.split_at(cut);
@@ -508,7 +637,7 @@ mod tests {
         let keys = [1, 1, 2, 3, 3, 3, 4, 6, 6, 7];
         let pairs: Vec<(u32, usize)> = keys.iter().copied().zip(0..).collect();
         for want in 0..=pairs.len() + 1 {
-            let runs = runs_of(&pairs, want);
+            let runs = runs_of(&pairs, want, |a, b| a.0 == b.0);
             assert_eq!(runs.concat(), pairs, "run length {want}");
             for (i, r) in runs.iter().enumerate() {
                 assert!(!r.is_empty(), "run length {want}");
@@ -518,8 +647,9 @@ mod tests {
                 }
             }
         }
-        assert_eq!(runs_of(&pairs[..0], 3), vec![&pairs[..0]]);
-        assert_eq!(runs_of(&pairs, 4).len(), 2);
+        let same = |a: &(u32, usize), b: &(u32, usize)| a.0 == b.0;
+        assert_eq!(runs_of(&pairs[..0], 3, same), vec![&pairs[..0]]);
+        assert_eq!(runs_of(&pairs, 4, same).len(), 2);
     }
 
     #[test]
@@ -542,7 +672,8 @@ mod tests {
         let prev_mixed = [false, true, false, false, true, true, true];
         for j in [1, 2] {
             let mut defects = Vec::new();
-            let whole = group_cofacets(&pairs, &prev_mixed, (j, 4), usize::MAX, &mut defects);
+            let whole =
+                group_cofacets(&pairs, &Wide, &prev_mixed, (j, 4), usize::MAX, &mut defects);
             let lists = |l: &Level| {
                 (0..l.len())
                     .map(|i| l.facets(i).to_vec())
@@ -561,7 +692,7 @@ mod tests {
             }
             for run in 0..=pairs.len() {
                 let mut d = Vec::new();
-                let part = group_cofacets(&pairs, &prev_mixed, (j, 4), run, &mut d);
+                let part = group_cofacets(&pairs, &Wide, &prev_mixed, (j, 4), run, &mut d);
                 assert_eq!(part.0, whole.0, "j {j}, run {run}");
                 assert_eq!(lists(&part.1), lists(&whole.1), "j {j}, run {run}");
                 assert_eq!(part.1.interior(), whole.1.interior(), "j {j}, run {run}");
@@ -681,7 +812,7 @@ mod tests {
             .max(codec.words());
         const W: usize = 2;
         assert_eq!(words, W);
-        let (levels, _) = raw_levels::<W>(&s, bits, u64::MAX, None, true).unwrap();
+        let (levels, _) = raw_levels::<W>(&s, bits, u64::MAX, None, true, true).unwrap();
         // Level 1, built from S: its pairs (as many as counted) and its own arrays.
         let prev: Vec<[u64; W]> = (0..s.len())
             .map(|i| {
@@ -691,7 +822,12 @@ mod tests {
             })
             .collect();
         let cj = KeyCodec::new(3, 2, bits).unwrap();
-        let pairs = cofacet_pairs::<W>(&prev, codec, &cj, &cofacet_counts(&prev, codec)).unwrap();
+        let (lo, hi) = base_bounds(&prev, codec, 1);
+        let packer = Packer::<W>::new(&cj, &lo, &hi, prev.len()).unwrap();
+        let counts = cofacet_counts(&prev, codec);
+        let pairs = cofacet_pairs(&prev, codec, &cj, &counts, 0, |k, i| packer.pack(k, i))
+            .unwrap()
+            .unwrap();
         // Counted by listing them.
         let mut count = 0u64;
         for k in &prev {
@@ -699,11 +835,12 @@ mod tests {
         }
         assert_eq!(pairs.len() as u64, count);
         let l = &levels[0];
-        let peak = size_of_val(&pairs[..])
+        // The packed pairs, and as much again to sort them.
+        let peak = 2 * size_of_val(&pairs[..])
             + size_of_val(&l.keys[..])
             + size_of_val(&l.cells.facets[..])
             + size_of_val(&l.mixed[..]);
-        let estimate = peak_bytes::<W>(count) as usize;
+        let estimate = peak_bytes::<W>(count, true) as usize;
         assert!(
             peak <= estimate && estimate <= 2 * peak,
             "{peak} {estimate}"
@@ -720,8 +857,8 @@ mod tests {
         );
         // The check refuses exactly past its estimate (no counting allocator here: the
         // heap in use is the estimate).
-        let need =
-            (held_bytes::<W>(&[], s.len()) + s.memory_bytes()) as u64 + peak_bytes::<W>(count);
+        let need = (held_bytes::<W>(&[], s.len()) + s.memory_bytes()) as u64
+            + peak_bytes::<W>(count, true);
         let domain = Domain::new(&p.system, None);
         let e = build(&s, &domain, need - 1, None, false).err().unwrap();
         assert!(e.to_string().contains("for its 1-cells"), "{e}");
@@ -747,5 +884,76 @@ mod tests {
             ok.0.counts(),
             Complex::build(&s, &p.system, None).unwrap().counts()
         );
+    }
+
+    /// A raw level's facet lists, keys and mixed flags.
+    type Raw = (Vec<Vec<u32>>, Vec<u64>, Vec<bool>);
+
+    /// The raw levels' cells, keys, mixed flags and defects, to compare two constructions.
+    fn raw_of<const W: usize>(s: &Sample, packing: bool) -> Vec<Raw> {
+        let bits = (s.codec().coord_bits() + 1).min(32);
+        let (levels, defects) = raw_levels::<W>(s, bits, u64::MAX, None, true, packing).unwrap();
+        let mut out: Vec<_> = levels
+            .iter()
+            .map(|l| {
+                let lists = (0..l.cells.len())
+                    .map(|i| l.cells.facets(i).to_vec())
+                    .collect();
+                (lists, l.keys.clone(), l.mixed.clone())
+            })
+            .collect();
+        out.push((vec![defects], Vec::new(), Vec::new()));
+        out
+    }
+
+    #[test]
+    fn packed_and_wide_pairs_give_the_same_cells() {
+        // The sphere with no box (two-word keys, packed), and cut by a box (mixed cells).
+        let (_, s) = sphere(None);
+        assert_eq!(s.codec().words(), 1);
+        assert_eq!(raw_of::<2>(&s, true), raw_of::<2>(&s, false));
+        let (_, s) = sphere(Some(vec![[-2.0, 2.0], [-2.0, 2.0], [-2.0, 0.3]]));
+        assert!(s.rim_len() > 10);
+        assert_eq!(raw_of::<1>(&s, true), raw_of::<1>(&s, false));
+        // The flat torus in R^4: two levels, four-dimensional keys.
+        let mut p = preset("flat-torus", &[]).unwrap();
+        p.triangulation.edge = Some(0.3);
+        let tri = p.triangulation.build(4).unwrap();
+        let opts = TraceOptions {
+            seeds: p.seeds.clone(),
+            ..TraceOptions::default()
+        };
+        let s = trace(&p.system, &tri, &CpuOracle::new(&p.system), &opts).unwrap();
+        assert!(s.len() > 300);
+        let packed = raw_of::<2>(&s, true);
+        assert_eq!(packed.len(), 3);
+        assert_eq!(packed, raw_of::<2>(&s, false));
+    }
+
+    #[test]
+    fn a_cofacets_base_vertex_is_within_a_step_of_its_faces() {
+        // What the packed keys' bounds rest on: over S's simplices, their cofacets and theirs.
+        let (_, s) = sphere(None);
+        let mut lower: Vec<Simplex> = (0..s.len()).map(|i| s.simplex(i)).collect();
+        let (mut seen, mut moved) = (0, 0);
+        for _ in 0..2 {
+            let mut up = Vec::new();
+            for sigma in &lower {
+                for tau in sigma.cofacets() {
+                    let far = sigma
+                        .base()
+                        .iter()
+                        .zip(tau.base())
+                        .map(|(a, b)| (a - b).abs())
+                        .max();
+                    assert!(far <= Some(1), "{sigma:?} {tau:?}");
+                    seen += 1;
+                    moved += usize::from(far == Some(1));
+                    up.push(tau);
+                }
+            }
+            lower = up;
+        }
+        assert!(seen > 1000 && moved > 100, "{seen} {moved}");
     }
 }

@@ -16,6 +16,7 @@
 //! orders, so the result does not depend on the thread count.
 
 mod build;
+mod packed;
 pub mod surface;
 pub mod topology;
 

@@ -125,6 +125,12 @@ impl KeyCodec {
         self.d
     }
 
+    /// Bits of each element's part index (elements 0..d; element d is always in the last
+    /// part and not written).
+    pub(crate) fn part_bits(&self) -> u32 {
+        self.part_bits
+    }
+
     /// Dimension l of the simplices it packs.
     pub fn simplex_dim(&self) -> usize {
         self.l
