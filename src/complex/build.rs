@@ -9,7 +9,7 @@ use super::packed::{par_sort_distinct, Packer};
 use super::{Complex, ComplexStats, Level};
 use crate::error::{Error, Result};
 use crate::trace::{with_width, Domain, Sample};
-use crate::triangulation::{KeyCodec, MAX_DIM};
+use crate::triangulation::{KeyCodec, Simplex, MAX_DIM};
 
 /// The cells of one dimension before clipping: their facets (indices one level lower),
 /// whether they have both an inside and an outside crossing, and (when kept) their keys.
@@ -117,7 +117,7 @@ fn raw_levels<const W: usize>(
         }
         let run = run_len(count as usize);
         let packed = match &packer {
-            Some(p) => cofacet_pairs(&prev, &prev_codec, &cj, &counts, 0, |key, i| p.pack(key, i))?,
+            Some(p) => packed_pairs(&prev, &prev_codec, &counts, p)?,
             None => None,
         };
         // All interior: clipping adds the boundary cells.
@@ -125,11 +125,7 @@ fn raw_levels<const W: usize>(
             par_sort_distinct(&mut pairs);
             group_cofacets(&pairs, p, &prev_mixed, (j, n), run, &mut defects)
         } else {
-            let zero = ([0u64; W], 0u32);
-            let mut pairs = cofacet_pairs(&prev, &prev_codec, &cj, &counts, zero, |key, i| {
-                Some((*key, i))
-            })?
-            .expect("wide pairs take any key");
+            let mut pairs = wide_pairs(&prev, &prev_codec, &cj, &counts)?;
             pairs.par_sort_unstable();
             group_cofacets(&pairs, &Wide, &prev_mixed, (j, n), run, &mut defects)
         };
@@ -186,7 +182,11 @@ fn base_bounds<const W: usize>(
             let (mut lo, mut hi) = ([i32::MAX; MAX_DIM], [i32::MIN; MAX_DIM]);
             let mut v = [0i32; MAX_DIM];
             for key in chunk {
-                codec.decode_vertex(key, &mut v[..d]);
+                if codec.words() == W {
+                    codec.decode_vertex_w(key, &mut v[..d]);
+                } else {
+                    codec.decode_vertex(key, &mut v[..d]);
+                }
                 for i in 0..d {
                     lo[i] = lo[i].min(v[i]);
                     hi[i] = hi[i].max(v[i]);
@@ -261,7 +261,11 @@ fn cofacet_counts<const W: usize>(keys: &[[u64; W]], codec: &KeyCodec) -> Vec<u6
             |sigma, keys| {
                 keys.iter()
                     .map(|key| {
-                        codec.decode_into(key, sigma);
+                        if codec.words() == W {
+                            codec.decode_into_w(key, sigma);
+                        } else {
+                            codec.decode_into(key, sigma);
+                        }
                         sigma.cofacet_count()
                     })
                     .sum()
@@ -270,17 +274,16 @@ fn cofacet_counts<const W: usize>(keys: &[[u64; W]], codec: &KeyCodec) -> Vec<u6
         .collect()
 }
 
-/// `pair(cofacet key, index)` for every cofacet of every simplex in `keys`, or `None` where
-/// one gives none; `counts` holds how many cofacets each [`CHUNK`] of them has. Written in
-/// place, chunk by chunk in parallel, so that no thread copies or first touches the whole
-/// list alone.
+/// The (cofacet key, index) pairs of every simplex in `keys`, as `fill(simplex, index,
+/// out)` writes those of one (false: it could not); `counts` holds how many cofacets each
+/// [`CHUNK`] of them has. Written in place, chunk by chunk in parallel, so that no thread
+/// copies or first touches the whole list alone. `None` where `fill` could not.
 fn cofacet_pairs<const W: usize, P: Copy + Send + Sync>(
     keys: &[[u64; W]],
     codec: &KeyCodec,
-    cofacet_codec: &KeyCodec,
     counts: &[u64],
     zero: P,
-    pair: impl Fn(&[u64; W], u32) -> Option<P> + Sync,
+    fill: impl Fn(&Simplex, u32, &mut [P]) -> Result<bool> + Sync,
 ) -> Result<Option<Vec<P>>> {
     if keys.len() > u32::MAX as usize {
         return Err(Error::Trace("too many cells for 32-bit indices".into()));
@@ -295,6 +298,8 @@ fn cofacet_pairs<const W: usize, P: Copy + Send + Sync>(
         outs.push(out);
         rest = tail;
     }
+    // Keys of exactly W words take the 128-bit path.
+    let whole = codec.words() == W;
     let all = keys.par_chunks(CHUNK).zip(outs).enumerate().try_fold(
         || true,
         |all, (c, (chunk, out))| -> Result<bool> {
@@ -303,41 +308,17 @@ fn cofacet_pairs<const W: usize, P: Copy + Send + Sync>(
             }
             let mut sigma = codec.scratch();
             let mut at = 0;
-            let mut key = [0u64; W];
-            // Keys of exactly W words take the 128-bit paths.
-            let (whole, cofacet_whole) = (codec.words() == W, cofacet_codec.words() == W);
             for (j, k) in chunk.iter().enumerate() {
-                let i = (c * CHUNK + j) as u32;
-                let mut err = None;
                 if whole {
                     codec.decode_into_w(k, &mut sigma);
                 } else {
                     codec.decode_into(k, &mut sigma);
                 }
-                sigma.for_each_cofacet(|tau| {
-                    if err.is_none() {
-                        let encoded = if cofacet_whole {
-                            cofacet_codec.encode_masks_w(tau.base(), tau.parts(), &mut key)
-                        } else {
-                            cofacet_codec.encode(tau, &mut key)
-                        };
-                        match encoded {
-                            Ok(()) => match pair(&key, i) {
-                                Some(p) => {
-                                    out[at] = p;
-                                    at += 1;
-                                }
-                                None => err = Some(None),
-                            },
-                            Err(e) => err = Some(Some(e)),
-                        }
-                    }
-                });
-                match err {
-                    Some(Some(e)) => return Err(e),
-                    Some(None) => return Ok(false),
-                    None => {}
+                let n = sigma.cofacet_count() as usize;
+                if !fill(&sigma, (c * CHUNK + j) as u32, &mut out[at..at + n])? {
+                    return Ok(false);
                 }
+                at += n;
             }
             debug_assert_eq!(at, out.len());
             Ok(true)
@@ -345,6 +326,43 @@ fn cofacet_pairs<const W: usize, P: Copy + Send + Sync>(
     );
     let all = all.try_reduce(|| true, |a, b| Ok(a && b))?;
     Ok(all.then_some(pairs))
+}
+
+/// [`cofacet_pairs`] packed by `packer`.
+fn packed_pairs<const W: usize>(
+    keys: &[[u64; W]],
+    codec: &KeyCodec,
+    counts: &[u64],
+    packer: &Packer<W>,
+) -> Result<Option<Vec<u64>>> {
+    cofacet_pairs(keys, codec, counts, 0, |sigma, i, out| {
+        Ok(packer.cofacets(sigma, i, out))
+    })
+}
+
+/// [`cofacet_pairs`] as they are.
+fn wide_pairs<const W: usize>(
+    keys: &[[u64; W]],
+    codec: &KeyCodec,
+    cofacet_codec: &KeyCodec,
+    counts: &[u64],
+) -> Result<Vec<([u64; W], u32)>> {
+    let pairs = cofacet_pairs(keys, codec, counts, ([0; W], 0), |sigma, i, out| {
+        let (mut at, mut err) = (0, None);
+        sigma.for_each_cofacet(|tau| {
+            if err.is_none() {
+                match cofacet_codec.encode(tau, &mut out[at].0) {
+                    Ok(()) => {
+                        out[at].1 = i;
+                        at += 1;
+                    }
+                    Err(e) => err = Some(e),
+                }
+            }
+        });
+        err.map_or(Ok(true), Err)
+    })?;
+    Ok(pairs.expect("wide pairs take every key"))
 }
 
 /// The cells of level `j` from its sorted (cofacet key, facet index) `pairs`: their keys,
@@ -825,7 +843,7 @@ mod tests {
         let (lo, hi) = base_bounds(&prev, codec, 1);
         let packer = Packer::<W>::new(&cj, &lo, &hi, prev.len()).unwrap();
         let counts = cofacet_counts(&prev, codec);
-        let pairs = cofacet_pairs(&prev, codec, &cj, &counts, 0, |k, i| packer.pack(k, i))
+        let pairs = packed_pairs(&prev, codec, &counts, &packer)
             .unwrap()
             .unwrap();
         // Counted by listing them.
@@ -906,14 +924,28 @@ mod tests {
         out
     }
 
+    /// Whether the 1-cells of `s` are built from packed pairs.
+    fn packs<const W: usize>(s: &Sample) -> bool {
+        let codec = s.codec();
+        let bits = (codec.coord_bits() + 1).min(32);
+        let c1 = KeyCodec::new(codec.ambient_dim(), codec.simplex_dim() + 1, bits).unwrap();
+        let keys: Vec<[u64; W]> = (0..s.len())
+            .map(|i| std::array::from_fn(|w| s.key(i).get(w).copied().unwrap_or(0)))
+            .collect();
+        let (lo, hi) = base_bounds(&keys, codec, 1);
+        Packer::<W>::new(&c1, &lo, &hi, s.len() + s.rim_len()).is_some()
+    }
+
     #[test]
     fn packed_and_wide_pairs_give_the_same_cells() {
-        // The sphere with no box (two-word keys, packed), and cut by a box (mixed cells).
+        // The sphere with no box (two-word keys, a part field cut where a word ends), and
+        // cut by a box (mixed cells).
         let (_, s) = sphere(None);
         assert_eq!(s.codec().words(), 1);
+        assert!(packs::<2>(&s));
         assert_eq!(raw_of::<2>(&s, true), raw_of::<2>(&s, false));
         let (_, s) = sphere(Some(vec![[-2.0, 2.0], [-2.0, 2.0], [-2.0, 0.3]]));
-        assert!(s.rim_len() > 10);
+        assert!(s.rim_len() > 10 && packs::<1>(&s));
         assert_eq!(raw_of::<1>(&s, true), raw_of::<1>(&s, false));
         // The flat torus in R^4: two levels, four-dimensional keys.
         let mut p = preset("flat-torus", &[]).unwrap();
@@ -924,7 +956,8 @@ mod tests {
             ..TraceOptions::default()
         };
         let s = trace(&p.system, &tri, &CpuOracle::new(&p.system), &opts).unwrap();
-        assert!(s.len() > 300);
+        // A coordinate cut where a word ends.
+        assert!(s.len() > 300 && packs::<2>(&s));
         let packed = raw_of::<2>(&s, true);
         assert_eq!(packed.len(), 3);
         assert_eq!(packed, raw_of::<2>(&s, false));

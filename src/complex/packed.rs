@@ -8,18 +8,17 @@
 
 use rayon::prelude::*;
 
-use crate::triangulation::KeyCodec;
+use crate::triangulation::{KeyCodec, Simplex, MAX_DIM};
 
-/// A bit field of a key read as one integer (see [`Packer`]).
+/// A piece of one of a key's fields, as packed: bits `from..from + width` of the field's
+/// value, less `low` (at most `span`), go to bit `at` of the packed u64.
 #[derive(Clone, Copy, Debug)]
-struct Field {
-    /// Where it starts in that integer, and its width.
-    at: u32,
+struct Piece {
+    from: u32,
     width: u32,
-    /// Its least value (subtracted), the most the rest may be, and the bits it takes.
     low: u64,
     span: u64,
-    bits: u32,
+    at: u32,
 }
 
 /// Packs keys of `W` <= 2 words of one [`KeyCodec`], whose base vertices lie in a known box,
@@ -28,12 +27,19 @@ struct Field {
 ///
 /// Keys of `W` words compare word 0 first: as the integer V = word 0 * 2^64 + word 1, whose
 /// bits are the codec's fields (coordinates, then each element's part), a field cut where a
-/// word ends becoming two. Packed, the fields keep their order of significance in V, each
-/// less its least value: an order-preserving map of each field, so of V.
+/// word ends becoming two pieces. Packed, the pieces keep their order of significance in V,
+/// each less its least value (a coordinate's, when it is one piece): an order-preserving map
+/// of each piece, so of V. A packed key is the sum of its fields' packed bits, so the
+/// cofacets of a simplex are packed from its own fields ([`Packer::cofacets`]).
 #[derive(Clone, Debug)]
 pub(super) struct Packer<const W: usize> {
-    /// Most significant first.
-    fields: Vec<Field>,
+    d: usize,
+    coord_bits: u32,
+    part_bits: u32,
+    /// The pieces of coordinate i's field (i < d), then of element e's part field (d + e).
+    pieces: Vec<Vec<Piece>>,
+    /// The packed bits of element e in part x, at e * 2^part_bits + x.
+    parts: Vec<u64>,
     index_bits: u32,
 }
 
@@ -47,59 +53,111 @@ impl<const W: usize> Packer<W> {
         }
         let (d, bits, part_bits) = (codec.ambient_dim(), codec.coord_bits(), codec.part_bits());
         let bias = 1i64 << (bits - 1);
-        // (start in the codec's bit stream, width, least value when known).
-        let mut stream: Vec<(u32, u32, Option<u64>)> = (0..d)
-            .map(|i| {
-                let low = (i64::from(lo[i]) + bias).max(0) as u64;
-                (i as u32 * bits, bits, Some(low))
-            })
-            .collect();
-        stream.extend((0..d).map(|e| (d as u32 * bits + e as u32 * part_bits, part_bits, None)));
-        let mut fields = Vec::new();
-        for (i, (start, width, low)) in stream.into_iter().enumerate() {
+        // A box the codec cannot encode is left to the unpacked path (which says so).
+        let fits = |c: i32| (0..=mask(bits) as i64).contains(&(i64::from(c) + bias));
+        if !lo[..d].iter().chain(&hi[..d]).all(|&c| fits(c)) {
+            return None;
+        }
+        // (field, start in the key, width) of every piece, with its least value and span.
+        let mut all: Vec<(usize, u32, Piece)> = Vec::new();
+        for f in 0..2 * d {
+            let (start, width) = if f < d {
+                (f as u32 * bits, bits)
+            } else {
+                (d as u32 * bits + (f - d) as u32 * part_bits, part_bits)
+            };
             if width == 0 {
                 continue;
             }
             let end = start + width;
-            if start / 64 != (end - 1) / 64 {
-                // Cut where a word ends: two fields, each kept whole.
-                let cut = (start / 64 + 1) * 64;
-                fields.push(Self::raw(start, cut - start));
-                fields.push(Self::raw(cut, end - cut));
-            } else if let Some(low) = low {
-                let top = (i64::from(hi[i]) + bias).max(0) as u64;
-                let span = top.saturating_sub(low);
-                fields.push(Field {
-                    at: Self::position(start),
-                    width,
+            let cut = (start / 64 + 1) * 64;
+            let whole = |from, width| Piece {
+                from,
+                width,
+                low: 0,
+                span: mask(width),
+                at: 0,
+            };
+            // A coordinate's top piece (all of it, unless a word's end cuts it) ranges over
+            // the box's values shifted down.
+            let narrow = |from: u32, width: u32| {
+                let low = (i64::from(lo[f]) + bias) as u64 >> from;
+                let top = (i64::from(hi[f]) + bias) as u64 >> from;
+                Piece {
                     low,
-                    span,
-                    bits: u64::BITS - span.leading_zeros(),
-                });
+                    span: top.saturating_sub(low),
+                    ..whole(from, width)
+                }
+            };
+            if end > cut {
+                // Cut where a word ends: two pieces, the low one kept whole.
+                all.push((f, start, whole(0, cut - start)));
+                let high = if f < d {
+                    narrow(cut - start, end - cut)
+                } else {
+                    whole(cut - start, end - cut)
+                };
+                all.push((f, cut, high));
+            } else if f < d {
+                all.push((f, start, narrow(0, width)));
             } else {
-                fields.push(Self::raw(start, width));
+                all.push((f, start, whole(0, width)));
             }
         }
-        fields.sort_by_key(|f| std::cmp::Reverse(f.at));
         let index_bits = (usize::BITS - count.saturating_sub(1).leading_zeros()).max(1);
-        let total: u32 = fields.iter().map(|f| f.bits).sum::<u32>() + index_bits;
-        (total <= 64 && index_bits <= 32).then_some(Packer { fields, index_bits })
-    }
-
-    /// A field kept whole, at `start` in the codec's bit stream.
-    fn raw(start: u32, width: u32) -> Field {
-        Field {
-            at: Self::position(start),
-            width,
-            low: 0,
-            span: mask(width),
-            bits: width,
+        let used = |p: &Piece| u64::BITS - p.span.leading_zeros();
+        let total: u32 = all.iter().map(|(_, _, p)| used(p)).sum::<u32>() + index_bits;
+        if total > 64 || index_bits > 32 {
+            return None;
         }
+        // Least significant (in V) first, placed from just above the index up.
+        all.sort_by_key(|&(_, start, _)| (W as u32 - 1 - start / 64) * 64 + start % 64);
+        let mut pieces = vec![Vec::new(); 2 * d];
+        let mut at = index_bits;
+        for (f, _, mut p) in all {
+            p.at = at;
+            at += used(&p);
+            pieces[f].push(p);
+        }
+        let mut packer = Packer {
+            d,
+            coord_bits: bits,
+            part_bits,
+            pieces,
+            parts: Vec::new(),
+            index_bits,
+        };
+        packer.parts = (0..d)
+            .flat_map(|e| (0..1u64 << part_bits).map(move |x| (e, x)))
+            .map(|(e, x)| packer.field(d + e, x).expect("a part field is kept whole"))
+            .collect();
+        Some(packer)
     }
 
-    /// Where bit `s` of the codec's stream (word s / 64, bit s % 64) sits in V.
-    fn position(s: u32) -> u32 {
-        (W as u32 - 1 - s / 64) * 64 + s % 64
+    /// The packed bits of field `f` (coordinate f < d, or element f - d's part) of value
+    /// `x`, or `None` when it lies outside the box.
+    #[inline]
+    fn field(&self, f: usize, x: u64) -> Option<u64> {
+        let mut out = 0;
+        for p in &self.pieces[f] {
+            let y = ((x >> p.from) & mask(p.width)).wrapping_sub(p.low);
+            if y > p.span {
+                return None;
+            }
+            out |= y << p.at;
+        }
+        Some(out)
+    }
+
+    /// Where field `f` starts in a key read as one integer (bit i is bit i % 64 of word
+    /// i / 64), and its width.
+    fn place(&self, f: usize) -> (u32, u32) {
+        let (d, bits, pb) = (self.d, self.coord_bits, self.part_bits);
+        if f < d {
+            (f as u32 * bits, bits)
+        } else {
+            (d as u32 * bits + (f - d) as u32 * pb, pb)
+        }
     }
 
     /// Bits of the packed index.
@@ -108,31 +166,108 @@ impl<const W: usize> Packer<W> {
     }
 
     /// The packed pair, or `None` when a field lies outside the box it was made for.
-    #[inline]
+    #[cfg(test)]
     pub fn pack(&self, key: &[u64; W], index: u32) -> Option<u64> {
-        let v = join(key);
-        let mut acc = 0u64;
-        for f in &self.fields {
-            let x = ((v >> f.at) as u64 & mask(f.width)).wrapping_sub(f.low);
-            if x > f.span {
-                return None;
-            }
-            acc = (acc << f.bits) | x;
+        let v = key
+            .iter()
+            .enumerate()
+            .fold(0u128, |v, (i, &w)| v | u128::from(w) << (64 * i));
+        let mut out = u64::from(index);
+        for f in 0..self.pieces.len() {
+            let (start, width) = self.place(f);
+            out |= self.field(f, (v >> start) as u64 & mask(width))?;
         }
-        Some((acc << self.index_bits) | u64::from(index))
+        Some(out)
+    }
+
+    /// Writes into `out` the packed pairs (cofacet key, `index`) of every cofacet of `s`
+    /// (an l-simplex, keys of (l+1)-simplices), as many as `s.cofacet_count()`, in no
+    /// particular order; false when a base vertex lies outside the box.
+    ///
+    /// Splitting part i into sub and the rest moves the rest and every later part up one
+    /// index. Where d goes to the second-to-last part, the rest becomes the first part
+    /// (every other element moves up one, the rest's from the last index to 0) and the base
+    /// vertex drops one step on the rest's coordinates.
+    pub fn cofacets(&self, s: &Simplex, index: u32, out: &mut [u64]) -> bool {
+        let d = self.d;
+        let bias = 1i64 << (self.coord_bits - 1);
+        let size = 1usize << self.part_bits;
+        let part = |e: usize, x: usize| self.parts[e * size + x];
+        // The base's packed bits, and their change where a coordinate drops one step.
+        let (mut base, mut down) = (0u64, [0u64; MAX_DIM]);
+        for (i, &c) in s.base().iter().enumerate() {
+            let x = (i64::from(c) + bias) as u64;
+            let (Some(a), Some(b)) = (self.field(i, x), self.field(i, x.wrapping_sub(1))) else {
+                return false;
+            };
+            base |= a;
+            down[i] = b.wrapping_sub(a);
+        }
+        let parts = s.parts();
+        let n = parts.len();
+        let (top, below) = (1u64 << d, (1u64 << d) - 1);
+        let mut idx = [0usize; MAX_DIM];
+        for (q, &m) in parts.iter().enumerate() {
+            let mut m = m & below;
+            while m != 0 {
+                idx[m.trailing_zeros() as usize] = q;
+                m &= m - 1;
+            }
+        }
+        let index = u64::from(index);
+        let mut at = 0;
+        for (i, &m) in parts.iter().enumerate() {
+            if m.count_ones() < 2 {
+                continue;
+            }
+            let (mut split, mut rotated) = (base, base);
+            for (e, &q) in idx[..d].iter().enumerate() {
+                split = split.wrapping_add(part(e, q + usize::from(q > i)));
+                rotated = rotated.wrapping_add(part(e, q + 1));
+            }
+            let mut sub = (m - 1) & m;
+            while sub != 0 {
+                let mut rest = m & !sub & below;
+                let mut key;
+                if i == n - 1 && sub & top != 0 {
+                    key = rotated;
+                    while rest != 0 {
+                        let e = rest.trailing_zeros() as usize;
+                        key = key
+                            .wrapping_add(down[e])
+                            .wrapping_add(part(e, 0))
+                            .wrapping_sub(part(e, n));
+                        rest &= rest - 1;
+                    }
+                } else {
+                    key = split;
+                    while rest != 0 {
+                        let e = rest.trailing_zeros() as usize;
+                        key = key.wrapping_add(part(e, i + 1)).wrapping_sub(part(e, i));
+                        rest &= rest - 1;
+                    }
+                }
+                out[at] = key | index;
+                at += 1;
+                sub = (sub - 1) & m;
+            }
+        }
+        debug_assert_eq!(at, out.len());
+        true
     }
 
     /// The key of a packed pair.
     #[inline]
     pub fn key(&self, packed: u64) -> [u64; W] {
-        let mut acc = packed >> self.index_bits;
         let mut v = 0u128;
-        for f in self.fields.iter().rev() {
-            let x = acc & mask(f.bits);
-            acc >>= f.bits;
-            v |= u128::from(x + f.low) << f.at;
+        for (f, pieces) in self.pieces.iter().enumerate() {
+            let start = self.place(f).0;
+            for p in pieces {
+                let x = ((packed >> p.at) & mask(u64::BITS - p.span.leading_zeros())) + p.low;
+                v |= u128::from(x) << (start + p.from);
+            }
         }
-        split(v)
+        std::array::from_fn(|i| (v >> (64 * i)) as u64)
     }
 
     /// The index of a packed pair.
@@ -150,18 +285,6 @@ fn mask(bits: u32) -> u64 {
     } else {
         u64::MAX >> (64 - bits)
     }
-}
-
-/// A key of `W` <= 2 words as the integer that orders it (word 0 the more significant).
-#[inline]
-fn join<const W: usize>(key: &[u64; W]) -> u128 {
-    key.iter().fold(0u128, |v, &w| (v << 64) | u128::from(w))
-}
-
-/// The inverse of [`join`].
-#[inline]
-fn split<const W: usize>(v: u128) -> [u64; W] {
-    std::array::from_fn(|i| (v >> (64 * (W - 1 - i))) as u64)
 }
 
 /// Fewest values sorted in parallel: below, one thread sorts them.
@@ -234,8 +357,11 @@ pub(super) fn par_sort_distinct(v: &mut [u64]) {
 
 #[cfg(test)]
 mod tests {
+    use rand::SeedableRng;
+    use rand_chacha::ChaCha8Rng;
+
     use super::*;
-    use crate::triangulation::MAX_DIM;
+    use crate::triangulation::test_support::random_simplex;
 
     /// Keys of random simplices of `codec` with base vertices in [lo, hi], each with a random
     /// index below `count`.
@@ -340,6 +466,60 @@ mod tests {
         assert!(
             Packer::<2>::new(&KeyCodec::new(10, 9, 12).unwrap(), &[0; 10], &[3; 10], 9).is_none()
         );
+        // A box the codec cannot encode.
+        assert!(Packer::<2>::new(&codec, &[-(1 << 20) - 1, 0, 0], &[0; 3], 9).is_none());
+        assert!(Packer::<2>::new(&codec, &[0; 3], &[0, 1 << 20, 0], 9).is_none());
+        assert!(Packer::<2>::new(&codec, &[-(1 << 20); 3], &[3 - (1 << 20); 3], 9).is_some());
+    }
+
+    #[test]
+    fn a_simplexs_cofacets_pack_as_their_keys_do() {
+        let mut rng = ChaCha8Rng::seed_from_u64(5);
+        let mut seen = 0;
+        for d in 1..=6 {
+            for l in 0..d {
+                // 21 bits: a part field cut where a word ends in R^3; 15 and 17: a coordinate.
+                for bits in [4u32, 15, 17, 21] {
+                    let up = KeyCodec::new(d, l + 1, bits).unwrap();
+                    if up.words() > 2 {
+                        continue;
+                    }
+                    let r = (1 << (bits - 2)) - 1;
+                    // Bases of r.min(50) steps and one more (the canonical form), and their cofacets.
+                    let (lo, hi) = (vec![-r - 2; d], vec![r; d]);
+                    let Some(packer) = Packer::<2>::new(&up, &lo, &hi, 1000) else {
+                        continue;
+                    };
+                    for _ in 0..30 {
+                        let s = random_simplex(&mut rng, d, l, (r - 2).min(50));
+                        let mut want = Vec::new();
+                        s.for_each_cofacet(|t| {
+                            let mut key = [0u64; 2];
+                            up.encode(t, &mut key).unwrap();
+                            want.push(packer.pack(&key, 77).unwrap());
+                        });
+                        let mut got = vec![0; s.cofacet_count() as usize];
+                        assert!(
+                            packer.cofacets(&s, 77, &mut got),
+                            "d {d} l {l} bits {bits} {s:?} {packer:?}"
+                        );
+                        got.sort_unstable();
+                        want.sort_unstable();
+                        assert_eq!(got, want, "d {d}, l {l}, bits {bits}: {s:?}");
+                        seen += got.len();
+                    }
+                }
+            }
+        }
+        assert!(seen > 5_000, "{seen}");
+        // A base vertex on the box's lower side: its rotated cofacets leave the box.
+        let up = KeyCodec::new(2, 1, 8).unwrap();
+        let packer = Packer::<2>::new(&up, &[0, 0], &[5, 5], 10).unwrap();
+        let s = Simplex::from_masks(&[0, 2], &[0b111]).unwrap();
+        let mut out = vec![0; s.cofacet_count() as usize];
+        assert!(!packer.cofacets(&s, 1, &mut out));
+        let s = Simplex::from_masks(&[1, 2], &[0b111]).unwrap();
+        assert!(packer.cofacets(&s, 1, &mut out));
     }
 
     #[test]

@@ -7,7 +7,7 @@ mod key;
 mod key_set;
 mod simplex;
 #[cfg(test)]
-mod test_support;
+pub(crate) mod test_support;
 
 pub use geometry::{
     random_rotation, Offset, Triangulation, TriangulationBuilder, TriangulationKind, EDGE_RANGE,
