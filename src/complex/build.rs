@@ -964,6 +964,30 @@ mod tests {
     }
 
     #[test]
+    fn pairs_of_a_face_outside_the_packers_box_are_refused() {
+        // A box one step short on one side leaves out a few simplices of one work item: the
+        // whole list is refused, not the item alone.
+        let (_, s) = sphere(None);
+        let codec = s.codec();
+        let bits = (codec.coord_bits() + 1).min(32);
+        let c1 = KeyCodec::new(3, 2, bits).unwrap();
+        let keys: Vec<[u64; 2]> = (0..s.len()).map(|i| [s.key(i)[0], 0]).collect();
+        let counts = cofacet_counts(&keys, codec);
+        assert!(counts.len() > 2);
+        let (lo, mut hi) = base_bounds(&keys, codec, 1);
+        let packer = Packer::<2>::new(&c1, &lo, &hi, s.len()).unwrap();
+        let all = packed_pairs(&keys, codec, &counts, &packer)
+            .unwrap()
+            .unwrap();
+        assert_eq!(all.len() as u64, counts.iter().sum::<u64>());
+        hi[0] -= 2;
+        let packer = Packer::<2>::new(&c1, &lo, &hi, s.len()).unwrap();
+        assert!(packed_pairs(&keys, codec, &counts, &packer)
+            .unwrap()
+            .is_none());
+    }
+
+    #[test]
     fn a_cofacets_base_vertex_is_within_a_step_of_its_faces() {
         // What the packed keys' bounds rest on: over S's simplices, their cofacets and theirs.
         let (_, s) = sphere(None);

@@ -418,6 +418,7 @@ mod tests {
                         (c.ambient_dim(), c.simplex_dim(), c.coord_bits()),
                         (d, l, bits)
                     );
+                    assert_eq!(c.part_bits() as usize, part_bits(l), "d={d} l={l}");
                 }
             }
         }
