@@ -99,11 +99,9 @@ fn raw_levels<const W: usize>(
             ));
         }
         let cj = KeyCodec::new(d, k + j, bits)?;
-        // A cofacet's base vertex is one of its faces' or one step below it.
-        let (lo, hi) = base_bounds(&prev, &prev_codec, 1);
+        let Survey { counts, lo, hi } = survey(&prev, &prev_codec);
         let packer = Packer::<W>::new(&cj, &lo, &hi, prev.len()).filter(|_| packing);
         // The pairs are the peak: refuse up front rather than exhaust memory.
-        let counts = cofacet_counts(&prev, &prev_codec);
         let count: u64 = counts.iter().sum();
         let need = crate::memory::in_use(held_bytes::<W>(&levels, prev.len()) + s.memory_bytes())
             + peak_bytes::<W>(count, packer.is_some());
@@ -168,48 +166,6 @@ fn peak_bytes<const W: usize>(cofacets: u64, packed: bool) -> u64 {
     cofacets * (pair + W * 8 + 5) as u64
 }
 
-/// The least and the greatest base vertex coordinates of the simplices `keys`, widened by
-/// `margin` lattice steps.
-fn base_bounds<const W: usize>(
-    keys: &[[u64; W]],
-    codec: &KeyCodec,
-    margin: i32,
-) -> (Vec<i32>, Vec<i32>) {
-    let d = codec.ambient_dim();
-    let (lo, hi) = keys
-        .par_chunks(CHUNK)
-        .map(|chunk| {
-            let (mut lo, mut hi) = ([i32::MAX; MAX_DIM], [i32::MIN; MAX_DIM]);
-            let mut v = [0i32; MAX_DIM];
-            for key in chunk {
-                if codec.words() == W {
-                    codec.decode_vertex_w(key, &mut v[..d]);
-                } else {
-                    codec.decode_vertex(key, &mut v[..d]);
-                }
-                for i in 0..d {
-                    lo[i] = lo[i].min(v[i]);
-                    hi[i] = hi[i].max(v[i]);
-                }
-            }
-            (lo, hi)
-        })
-        .reduce(
-            || ([i32::MAX; MAX_DIM], [i32::MIN; MAX_DIM]),
-            |(mut lo, mut hi), (a, b)| {
-                for i in 0..d {
-                    lo[i] = lo[i].min(a[i]);
-                    hi[i] = hi[i].max(b[i]);
-                }
-                (lo, hi)
-            },
-        );
-    (
-        lo[..d].iter().map(|x| x.saturating_sub(margin)).collect(),
-        hi[..d].iter().map(|x| x.saturating_add(margin)).collect(),
-    )
-}
-
 /// How a sorted list of (cofacet key, facet index) pairs of type `P` is read.
 trait ReadPairs<P, const W: usize>: Sync {
     /// What equal cofacets share.
@@ -253,25 +209,59 @@ const CHUNK: usize = 256;
 /// Fewest cofacet pairs per parallel work item when grouping them into cells.
 const GROUP_CHUNK: usize = 1 << 14;
 
-/// How many cofacets each [`CHUNK`] of the simplices `keys` has.
-fn cofacet_counts<const W: usize>(keys: &[[u64; W]], codec: &KeyCodec) -> Vec<u64> {
-    keys.par_chunks(CHUNK)
+/// What listing the cofacets of some simplices needs: how many cofacets each [`CHUNK`] of
+/// them has, and the box of the cofacets' base vertices (a cofacet's base vertex is its
+/// face's or one step below it, so the faces' box widened by one step).
+struct Survey {
+    counts: Vec<u64>,
+    lo: Vec<i32>,
+    hi: Vec<i32>,
+}
+
+/// The [`Survey`] of the simplices `keys`.
+fn survey<const W: usize>(keys: &[[u64; W]], codec: &KeyCodec) -> Survey {
+    let d = codec.ambient_dim();
+    let chunks: Vec<(u64, [i32; MAX_DIM], [i32; MAX_DIM])> = keys
+        .par_chunks(CHUNK)
         .map_init(
             || codec.scratch(),
             |sigma, keys| {
-                keys.iter()
-                    .map(|key| {
-                        if codec.words() == W {
-                            codec.decode_into_w(key, sigma);
-                        } else {
-                            codec.decode_into(key, sigma);
-                        }
-                        sigma.cofacet_count()
-                    })
-                    .sum()
+                let (mut count, mut lo, mut hi) = (0, [i32::MAX; MAX_DIM], [i32::MIN; MAX_DIM]);
+                for key in keys {
+                    decode(codec, key, sigma);
+                    count += sigma.cofacet_count();
+                    for (i, &c) in sigma.base().iter().enumerate() {
+                        lo[i] = lo[i].min(c);
+                        hi[i] = hi[i].max(c);
+                    }
+                }
+                (count, lo, hi)
             },
         )
-        .collect()
+        .collect();
+    let (mut lo, mut hi) = (vec![i32::MAX; d], vec![i32::MIN; d]);
+    for (_, a, b) in &chunks {
+        for i in 0..d {
+            lo[i] = lo[i].min(a[i]);
+            hi[i] = hi[i].max(b[i]);
+        }
+    }
+    Survey {
+        counts: chunks.iter().map(|c| c.0).collect(),
+        lo: lo.iter().map(|x| x.saturating_sub(1)).collect(),
+        hi: hi.iter().map(|x| x.saturating_add(1)).collect(),
+    }
+}
+
+/// Decodes `key` (a key of `codec`, padded to `W` words) into `out`: keys of exactly `W`
+/// words take the 128-bit path.
+#[inline]
+fn decode<const W: usize>(codec: &KeyCodec, key: &[u64; W], out: &mut Simplex) {
+    if codec.words() == W {
+        codec.decode_into_w(key, out);
+    } else {
+        codec.decode_into(key, out);
+    }
 }
 
 /// The (cofacet key, index) pairs of every simplex in `keys`, as `fill(simplex, index,
@@ -298,8 +288,6 @@ fn cofacet_pairs<const W: usize, P: Copy + Send + Sync>(
         outs.push(out);
         rest = tail;
     }
-    // Keys of exactly W words take the 128-bit path.
-    let whole = codec.words() == W;
     let all = keys.par_chunks(CHUNK).zip(outs).enumerate().try_fold(
         || true,
         |all, (c, (chunk, out))| -> Result<bool> {
@@ -309,11 +297,7 @@ fn cofacet_pairs<const W: usize, P: Copy + Send + Sync>(
             let mut sigma = codec.scratch();
             let mut at = 0;
             for (j, k) in chunk.iter().enumerate() {
-                if whole {
-                    codec.decode_into_w(k, &mut sigma);
-                } else {
-                    codec.decode_into(k, &mut sigma);
-                }
+                decode(codec, k, &mut sigma);
                 let n = sigma.cofacet_count() as usize;
                 if !fill(&sigma, (c * CHUNK + j) as u32, &mut out[at..at + n])? {
                     return Ok(false);
@@ -840,9 +824,8 @@ mod tests {
             })
             .collect();
         let cj = KeyCodec::new(3, 2, bits).unwrap();
-        let (lo, hi) = base_bounds(&prev, codec, 1);
+        let Survey { counts, lo, hi } = survey(&prev, codec);
         let packer = Packer::<W>::new(&cj, &lo, &hi, prev.len()).unwrap();
-        let counts = cofacet_counts(&prev, codec);
         let pairs = packed_pairs(&prev, codec, &counts, &packer)
             .unwrap()
             .unwrap();
@@ -932,7 +915,7 @@ mod tests {
         let keys: Vec<[u64; W]> = (0..s.len())
             .map(|i| std::array::from_fn(|w| s.key(i).get(w).copied().unwrap_or(0)))
             .collect();
-        let (lo, hi) = base_bounds(&keys, codec, 1);
+        let Survey { lo, hi, .. } = survey(&keys, codec);
         Packer::<W>::new(&c1, &lo, &hi, s.len() + s.rim_len()).is_some()
     }
 
@@ -972,9 +955,8 @@ mod tests {
         let bits = (codec.coord_bits() + 1).min(32);
         let c1 = KeyCodec::new(3, 2, bits).unwrap();
         let keys: Vec<[u64; 2]> = (0..s.len()).map(|i| [s.key(i)[0], 0]).collect();
-        let counts = cofacet_counts(&keys, codec);
+        let Survey { counts, lo, mut hi } = survey(&keys, codec);
         assert!(counts.len() > 2);
-        let (lo, mut hi) = base_bounds(&keys, codec, 1);
         let packer = Packer::<2>::new(&c1, &lo, &hi, s.len()).unwrap();
         let all = packed_pairs(&keys, codec, &counts, &packer)
             .unwrap()

@@ -11,13 +11,14 @@ use rayon::prelude::*;
 use crate::triangulation::{KeyCodec, Simplex, MAX_DIM};
 
 /// A piece of one of a key's fields, as packed: bits `from..from + width` of the field's
-/// value, less `low` (at most `span`), go to bit `at` of the packed u64.
+/// value, less `low` (at most `span`, `bits` wide), go to bit `at` of the packed u64.
 #[derive(Clone, Copy, Debug)]
 struct Piece {
     from: u32,
     width: u32,
     low: u64,
     span: u64,
+    bits: u32,
     at: u32,
 }
 
@@ -76,6 +77,7 @@ impl<const W: usize> Packer<W> {
                 width,
                 low: 0,
                 span: mask(width),
+                bits: 0,
                 at: 0,
             };
             // A coordinate's top piece (all of it, unless a word's end cuts it) ranges over
@@ -105,8 +107,10 @@ impl<const W: usize> Packer<W> {
             }
         }
         let index_bits = (usize::BITS - count.saturating_sub(1).leading_zeros()).max(1);
-        let used = |p: &Piece| u64::BITS - p.span.leading_zeros();
-        let total: u32 = all.iter().map(|(_, _, p)| used(p)).sum::<u32>() + index_bits;
+        for (_, _, p) in &mut all {
+            p.bits = u64::BITS - p.span.leading_zeros();
+        }
+        let total: u32 = all.iter().map(|(_, _, p)| p.bits).sum::<u32>() + index_bits;
         if total > 64 || index_bits > 32 {
             return None;
         }
@@ -116,7 +120,7 @@ impl<const W: usize> Packer<W> {
         let mut at = index_bits;
         for (f, _, mut p) in all {
             p.at = at;
-            at += used(&p);
+            at += p.bits;
             pieces[f].push(p);
         }
         let mut packer = Packer {
@@ -263,7 +267,7 @@ impl<const W: usize> Packer<W> {
         for (f, pieces) in self.pieces.iter().enumerate() {
             let start = self.place(f).0;
             for p in pieces {
-                let x = ((packed >> p.at) & mask(u64::BITS - p.span.leading_zeros())) + p.low;
+                let x = ((packed >> p.at) & mask(p.bits)) + p.low;
                 v |= u128::from(x) << (start + p.from);
             }
         }
