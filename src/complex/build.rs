@@ -5,7 +5,7 @@ use std::time::Instant;
 
 use rayon::prelude::*;
 
-use super::packed::{par_sort_distinct, Packer};
+use super::packed::{par_sort_distinct, Packer, Word};
 use super::{Complex, ComplexStats, Level};
 use crate::error::{Error, Result};
 use crate::trace::{with_width, Domain, Sample};
@@ -68,7 +68,8 @@ pub(super) fn build(
 /// The unclipped levels 1..=m: level j holds the cofacets of level j - 1 (level 0: S, then
 /// the rim), grouped. A 1-cell needs a vertex in S, and exactly two crossed facets; the
 /// edges left out are returned as their first vertex in S. With `packing`, a level's pairs
-/// are packed into u64s where they fit ([`Packer`]); the cells are the same either way.
+/// are packed into a u64 each where they fit, else into a u128 ([`Packer`]); the cells are
+/// the same either way.
 fn raw_levels<const W: usize>(
     s: &Sample,
     bits: u32,
@@ -100,11 +101,18 @@ fn raw_levels<const W: usize>(
         }
         let cj = KeyCodec::new(d, k + j, bits)?;
         let Survey { counts, lo, hi } = survey(&prev, &prev_codec);
-        let packer = Packer::<W>::new(&cj, &lo, &hi, prev.len()).filter(|_| packing);
+        let narrow = Packer::<W, u64>::new(&cj, &lo, &hi, prev.len()).filter(|_| packing);
+        let wide = Packer::<W, u128>::new(&cj, &lo, &hi, prev.len())
+            .filter(|_| packing && narrow.is_none());
+        let packed_bytes = match (&narrow, &wide) {
+            (Some(_), _) => Some(8),
+            (None, Some(_)) => Some(16),
+            (None, None) => None,
+        };
         // The pairs are the peak: refuse up front rather than exhaust memory.
         let count: u64 = counts.iter().sum();
         let need = crate::memory::in_use(held_bytes::<W>(&levels, prev.len()) + s.memory_bytes())
-            + peak_bytes::<W>(count, packer.is_some());
+            + peak_bytes::<W>(count, packed_bytes);
         if need > max_memory {
             return Err(Error::Trace(format!(
                 "the cell complex needs about {} for its {j}-cells, over the memory limit of {} \
@@ -114,18 +122,27 @@ fn raw_levels<const W: usize>(
             )));
         }
         let run = run_len(count as usize);
-        let packed = match &packer {
-            Some(p) => packed_pairs(&prev, &prev_codec, &counts, p)?,
-            None => None,
+        let level = Below {
+            keys: &prev,
+            codec: &prev_codec,
+            counts: &counts,
+            mixed: &prev_mixed,
+            jn: (j, n),
+            run,
         };
         // All interior: clipping adds the boundary cells.
-        let (keys, cells, mixed) = if let (Some(mut pairs), Some(p)) = (packed, &packer) {
-            par_sort_distinct(&mut pairs);
-            group_cofacets(&pairs, p, &prev_mixed, (j, n), run, &mut defects)
-        } else {
-            let mut pairs = wide_pairs(&prev, &prev_codec, &cj, &counts)?;
-            pairs.par_sort_unstable();
-            group_cofacets(&pairs, &Wide, &prev_mixed, (j, n), run, &mut defects)
+        let packed = match (&narrow, &wide) {
+            (Some(p), _) => packed_level(p, &level, &mut defects)?,
+            (None, Some(p)) => packed_level(p, &level, &mut defects)?,
+            (None, None) => None,
+        };
+        let (keys, cells, mixed) = match packed {
+            Some(level) => level,
+            None => {
+                let mut pairs = wide_pairs(&prev, &prev_codec, &cj, &counts)?;
+                pairs.par_sort_unstable();
+                group_cofacets(&pairs, &Wide, &prev_mixed, (j, n), run, &mut defects)
+            }
         };
         let kept = if keep_keys {
             keys.iter().flatten().copied().collect()
@@ -155,13 +172,12 @@ fn held_bytes<const W: usize>(levels: &[RawLevel], prev: usize) -> usize {
 }
 
 /// Bytes that building a level from `cofacets` cofacets adds at its peak: the (key, index)
-/// pairs (`packed`: a u64 each, and as much again to sort them), and for the new level at
-/// most as many keys, facet indices and mixed flags.
-fn peak_bytes<const W: usize>(cofacets: u64, packed: bool) -> u64 {
-    let pair = if packed {
-        16
-    } else {
-        std::mem::size_of::<([u64; W], u32)>()
+/// pairs (packed: `packed` bytes each, and as much again to sort them), and for the new
+/// level at most as many keys, facet indices and mixed flags.
+fn peak_bytes<const W: usize>(cofacets: u64, packed: Option<usize>) -> u64 {
+    let pair = match packed {
+        Some(bytes) => 2 * bytes,
+        None => std::mem::size_of::<([u64; W], u32)>(),
     };
     cofacets * (pair + W * 8 + 5) as u64
 }
@@ -191,15 +207,15 @@ impl<const W: usize> ReadPairs<([u64; W], u32), W> for Wide {
     }
 }
 
-impl<const W: usize> ReadPairs<u64, W> for Packer<W> {
-    type Group = u64;
-    fn group(&self, pair: &u64) -> u64 {
-        pair >> self.index_bits()
+impl<const W: usize, P: Word> ReadPairs<P, W> for Packer<W, P> {
+    type Group = P;
+    fn group(&self, pair: &P) -> P {
+        *pair >> self.index_bits()
     }
-    fn index(&self, pair: &u64) -> u32 {
+    fn index(&self, pair: &P) -> u32 {
         Packer::index(self, *pair)
     }
-    fn key(&self, pair: &u64) -> [u64; W] {
+    fn key(&self, pair: &P) -> [u64; W] {
         Packer::key(self, *pair)
     }
 }
@@ -313,15 +329,52 @@ fn cofacet_pairs<const W: usize, P: Copy + Send + Sync>(
 }
 
 /// [`cofacet_pairs`] packed by `packer`.
-fn packed_pairs<const W: usize>(
+fn packed_pairs<const W: usize, P: Word>(
     keys: &[[u64; W]],
     codec: &KeyCodec,
     counts: &[u64],
-    packer: &Packer<W>,
-) -> Result<Option<Vec<u64>>> {
-    cofacet_pairs(keys, codec, counts, 0, |sigma, i, out| {
+    packer: &Packer<W, P>,
+) -> Result<Option<Vec<P>>> {
+    cofacet_pairs(keys, codec, counts, P::default(), |sigma, i, out| {
         Ok(packer.cofacets(sigma, i, out))
     })
+}
+
+/// What level j is built from: the level below.
+struct Below<'a, const W: usize> {
+    keys: &'a [[u64; W]],
+    codec: &'a KeyCodec,
+    /// How many cofacets each [`CHUNK`] of `keys` has.
+    counts: &'a [u64],
+    mixed: &'a [bool],
+    /// (j, |S|).
+    jn: (usize, usize),
+    /// Pairs per parallel work item when grouping.
+    run: usize,
+}
+
+/// A level's cells: their keys, facet lists and mixed flags.
+type Cells<const W: usize> = (Vec<[u64; W]>, Level, Vec<bool>);
+
+/// The cells of a level from its pairs packed by `packer`, sorted and grouped; `None`
+/// where a face lies outside the packer's box.
+fn packed_level<const W: usize, P: Word>(
+    packer: &Packer<W, P>,
+    below: &Below<'_, W>,
+    defects: &mut Vec<u32>,
+) -> Result<Option<Cells<W>>> {
+    let Some(mut pairs) = packed_pairs(below.keys, below.codec, below.counts, packer)? else {
+        return Ok(None);
+    };
+    par_sort_distinct(&mut pairs);
+    Ok(Some(group_cofacets(
+        &pairs,
+        packer,
+        below.mixed,
+        below.jn,
+        below.run,
+        defects,
+    )))
 }
 
 /// [`cofacet_pairs`] as they are.
@@ -361,7 +414,7 @@ fn group_cofacets<P: Sync, const W: usize>(
     (j, n): (usize, usize),
     run: usize,
     defects: &mut Vec<u32>,
-) -> (Vec<[u64; W]>, Level, Vec<bool>) {
+) -> Cells<W> {
     // A group is a cell, or dropped, or a defect.
     let kind = |group: &[P]| {
         if j == 1 && group.iter().all(|p| read.index(p) as usize >= n) {
@@ -841,7 +894,7 @@ mod tests {
             + size_of_val(&l.keys[..])
             + size_of_val(&l.cells.facets[..])
             + size_of_val(&l.mixed[..]);
-        let estimate = peak_bytes::<W>(count, true) as usize;
+        let estimate = peak_bytes::<W>(count, Some(8)) as usize;
         assert!(
             peak <= estimate && estimate <= 2 * peak,
             "{peak} {estimate}"
@@ -859,7 +912,7 @@ mod tests {
         // The check refuses exactly past its estimate (no counting allocator here: the
         // heap in use is the estimate).
         let need = (held_bytes::<W>(&[], s.len()) + s.memory_bytes()) as u64
-            + peak_bytes::<W>(count, true);
+            + peak_bytes::<W>(count, Some(8));
         let domain = Domain::new(&p.system, None);
         let e = build(&s, &domain, need - 1, None, false).err().unwrap();
         assert!(e.to_string().contains("for its 1-cells"), "{e}");
@@ -907,8 +960,8 @@ mod tests {
         out
     }
 
-    /// Whether the 1-cells of `s` are built from packed pairs.
-    fn packs<const W: usize>(s: &Sample) -> bool {
+    /// Whether the 1-cells of `s` are built from pairs packed into a `P` each.
+    fn packs<const W: usize, P: Word>(s: &Sample) -> bool {
         let codec = s.codec();
         let bits = (codec.coord_bits() + 1).min(32);
         let c1 = KeyCodec::new(codec.ambient_dim(), codec.simplex_dim() + 1, bits).unwrap();
@@ -916,7 +969,7 @@ mod tests {
             .map(|i| std::array::from_fn(|w| s.key(i).get(w).copied().unwrap_or(0)))
             .collect();
         let Survey { lo, hi, .. } = survey(&keys, codec);
-        Packer::<W>::new(&c1, &lo, &hi, s.len() + s.rim_len()).is_some()
+        Packer::<W, P>::new(&c1, &lo, &hi, s.len() + s.rim_len()).is_some()
     }
 
     #[test]
@@ -925,10 +978,10 @@ mod tests {
         // cut by a box (mixed cells).
         let (_, s) = sphere(None);
         assert_eq!(s.codec().words(), 1);
-        assert!(packs::<2>(&s));
+        assert!(packs::<2, u64>(&s));
         assert_eq!(raw_of::<2>(&s, true), raw_of::<2>(&s, false));
         let (_, s) = sphere(Some(vec![[-2.0, 2.0], [-2.0, 2.0], [-2.0, 0.3]]));
-        assert!(s.rim_len() > 10 && packs::<1>(&s));
+        assert!(s.rim_len() > 10 && packs::<1, u64>(&s));
         assert_eq!(raw_of::<1>(&s, true), raw_of::<1>(&s, false));
         // The flat torus in R^4: two levels, four-dimensional keys.
         let mut p = preset("flat-torus", &[]).unwrap();
@@ -940,10 +993,23 @@ mod tests {
         };
         let s = trace(&p.system, &tri, &CpuOracle::new(&p.system), &opts).unwrap();
         // A coordinate cut where a word ends.
-        assert!(s.len() > 300 && packs::<2>(&s));
+        assert!(s.len() > 300 && packs::<2, u64>(&s));
         let packed = raw_of::<2>(&s, true);
         assert_eq!(packed.len(), 3);
         assert_eq!(packed, raw_of::<2>(&s, false));
+        // S^2 in R^8: keys of four words, which pack into 128 bits, not 64.
+        let mut p = preset("sphere", &[("d".into(), 8.0)]).unwrap();
+        p.triangulation.edge = Some(0.5);
+        let tri = p.triangulation.build(8).unwrap();
+        let opts = TraceOptions {
+            seeds: p.seeds.clone(),
+            ..TraceOptions::default()
+        };
+        let s = trace(&p.system, &tri, &CpuOracle::new(&p.system), &opts).unwrap();
+        assert!(s.len() > 1000 && !packs::<4, u64>(&s) && packs::<4, u128>(&s));
+        let packed = raw_of::<4>(&s, true);
+        assert_eq!(packed.len(), 3);
+        assert_eq!(packed, raw_of::<4>(&s, false));
     }
 
     #[test]

@@ -1,17 +1,70 @@
-//! (cofacet key, facet index) pairs packed into one u64 that sorts exactly as the pair does,
-//! and a parallel sort of distinct u64s.
+//! (cofacet key, facet index) pairs packed into one u64 (or u128) that sorts exactly as the
+//! pair does, and a parallel sort of distinct integers.
 //!
 //! A cell's key has room for any vertex of the trace's key box (20 bits a coordinate with no
 //! box), so a key of a surface in R^3 takes two words and its pair 24 bytes. Within one
 //! complex the coordinates span a few hundred values: a key's fields, each less its least
 //! value, and the index, fit one word, and comparing words costs a third of comparing pairs.
+//! Keys of three or more words (a 3-manifold in R^6, anything in R^8 and up) often fit 128
+//! bits packed.
+
+use std::fmt::Debug;
+use std::ops::{BitAnd, BitOr, BitOrAssign, Shl, Shr};
 
 use rayon::prelude::*;
 
 use crate::triangulation::{KeyCodec, Simplex, MAX_DIM};
 
+/// An unsigned integer that packed pairs are held in: u64, or u128 where 64 bits are too few.
+pub(super) trait Word:
+    Copy
+    + Ord
+    + Default
+    + Send
+    + Sync
+    + Debug
+    + Shl<u32, Output = Self>
+    + Shr<u32, Output = Self>
+    + BitAnd<Output = Self>
+    + BitOr<Output = Self>
+    + BitOrAssign
+{
+    const BITS: u32;
+    fn from_u64(x: u64) -> Self;
+    /// The low 64 bits.
+    fn low_u64(self) -> u64;
+    fn wrapping_add(self, other: Self) -> Self;
+    fn wrapping_sub(self, other: Self) -> Self;
+}
+
+macro_rules! word {
+    ($t:ty) => {
+        impl Word for $t {
+            const BITS: u32 = <$t>::BITS;
+            #[inline]
+            fn from_u64(x: u64) -> Self {
+                x as $t
+            }
+            #[inline]
+            fn low_u64(self) -> u64 {
+                self as u64
+            }
+            #[inline]
+            fn wrapping_add(self, other: Self) -> Self {
+                <$t>::wrapping_add(self, other)
+            }
+            #[inline]
+            fn wrapping_sub(self, other: Self) -> Self {
+                <$t>::wrapping_sub(self, other)
+            }
+        }
+    };
+}
+word!(u64);
+word!(u128);
+
 /// A piece of one of a key's fields, as packed: bits `from..from + width` of the field's
-/// value, less `low` (at most `span`, `bits` wide), go to bit `at` of the packed u64.
+/// value, less `low` (at most `span`, `bits` wide), go to bit `at` of the packed integer.
 #[derive(Clone, Copy, Debug)]
 struct Piece {
     from: u32,
@@ -22,34 +75,35 @@ struct Piece {
     at: u32,
 }
 
-/// Packs keys of `W` <= 2 words of one [`KeyCodec`], whose base vertices lie in a known box,
-/// with an index below a known count, into u64s whose order is the order of the (key,
-/// index) pairs.
+/// Packs keys of `W` words of one [`KeyCodec`], whose base vertices lie in a known box,
+/// with an index below a known count, into integers `P` (u64 or u128) whose order is the
+/// order of the (key, index) pairs.
 ///
-/// Keys of `W` words compare word 0 first: as the integer V = word 0 * 2^64 + word 1, whose
+/// Keys of `W` words compare word 0 first: as the integer V whose base-2^64 digits are the
+/// words, word 0 the highest, whose
 /// bits are the codec's fields (coordinates, then each element's part), a field cut where a
 /// word ends becoming two pieces. Packed, the pieces keep their order of significance in V,
 /// each less its least value (a coordinate's, when it is one piece): an order-preserving map
 /// of each piece, so of V. A packed key is the sum of its fields' packed bits, so the
 /// cofacets of a simplex are packed from its own fields ([`Packer::cofacets`]).
 #[derive(Clone, Debug)]
-pub(super) struct Packer<const W: usize> {
+pub(super) struct Packer<const W: usize, P = u64> {
     d: usize,
     coord_bits: u32,
     part_bits: u32,
     /// The pieces of coordinate i's field (i < d), then of element e's part field (d + e).
     pieces: Vec<Vec<Piece>>,
     /// The packed bits of element e in part x, at e * 2^part_bits + x.
-    parts: Vec<u64>,
+    parts: Vec<P>,
     index_bits: u32,
 }
 
-impl<const W: usize> Packer<W> {
+impl<const W: usize, P: Word> Packer<W, P> {
     /// The packer for keys of `codec` (at most `W` words) whose base vertex coordinates lie
-    /// in `[lo, hi]`, with indices below `count`; `None` when they would take more than 64
-    /// bits (or `W` > 2).
+    /// in `[lo, hi]`, with indices below `count`; `None` when they would take more bits than
+    /// `P` has.
     pub fn new(codec: &KeyCodec, lo: &[i32], hi: &[i32], count: usize) -> Option<Self> {
-        if W > 2 || codec.words() > W {
+        if codec.words() > W {
             return None;
         }
         let (d, bits, part_bits) = (codec.ambient_dim(), codec.coord_bits(), codec.part_bits());
@@ -111,7 +165,7 @@ impl<const W: usize> Packer<W> {
             p.bits = u64::BITS - p.span.leading_zeros();
         }
         let total: u32 = all.iter().map(|(_, _, p)| p.bits).sum::<u32>() + index_bits;
-        if total > 64 || index_bits > 32 {
+        if total > P::BITS || index_bits > 32 {
             return None;
         }
         // Least significant (in V) first, placed from just above the index up.
@@ -119,7 +173,9 @@ impl<const W: usize> Packer<W> {
         let mut pieces = vec![Vec::new(); 2 * d];
         let mut at = index_bits;
         for (f, _, mut p) in all {
-            p.at = at;
+            // A piece of no bits (a coordinate of one value) packs to nothing, at bit 0: no
+            // shift by the integer's width.
+            p.at = if p.bits == 0 { 0 } else { at };
             at += p.bits;
             pieces[f].push(p);
         }
@@ -141,14 +197,14 @@ impl<const W: usize> Packer<W> {
     /// The packed bits of field `f` (coordinate f < d, or element f - d's part) of value
     /// `x`, or `None` when it lies outside the box.
     #[inline]
-    fn field(&self, f: usize, x: u64) -> Option<u64> {
-        let mut out = 0;
+    fn field(&self, f: usize, x: u64) -> Option<P> {
+        let mut out = P::default();
         for p in &self.pieces[f] {
             let y = ((x >> p.from) & mask(p.width)).wrapping_sub(p.low);
             if y > p.span {
                 return None;
             }
-            out |= y << p.at;
+            out |= P::from_u64(y) << p.at;
         }
         Some(out)
     }
@@ -171,15 +227,14 @@ impl<const W: usize> Packer<W> {
 
     /// The packed pair, or `None` when a field lies outside the box it was made for.
     #[cfg(test)]
-    pub fn pack(&self, key: &[u64; W], index: u32) -> Option<u64> {
-        let v = key
-            .iter()
-            .enumerate()
-            .fold(0u128, |v, (i, &w)| v | u128::from(w) << (64 * i));
-        let mut out = u64::from(index);
+    pub fn pack(&self, key: &[u64; W], index: u32) -> Option<P> {
+        let word = |i: usize| u128::from(key.get(i).copied().unwrap_or(0));
+        let mut out = P::from_u64(u64::from(index));
         for f in 0..self.pieces.len() {
             let (start, width) = self.place(f);
-            out |= self.field(f, (v >> start) as u64 & mask(width))?;
+            let (i, off) = ((start / 64) as usize, start % 64);
+            let two = word(i) | word(i + 1) << 64;
+            out |= self.field(f, (two >> off) as u64 & mask(width))?;
         }
         Some(out)
     }
@@ -192,19 +247,19 @@ impl<const W: usize> Packer<W> {
     /// index. Where d goes to the second-to-last part, the rest becomes the first part
     /// (every other element moves up one, the rest's from the last index to 0) and the base
     /// vertex drops one step on the rest's coordinates.
-    pub fn cofacets(&self, s: &Simplex, index: u32, out: &mut [u64]) -> bool {
+    pub fn cofacets(&self, s: &Simplex, index: u32, out: &mut [P]) -> bool {
         let d = self.d;
         let bias = 1i64 << (self.coord_bits - 1);
         let size = 1usize << self.part_bits;
         let part = |e: usize, x: usize| self.parts[e * size + x];
         // The base's packed bits, and their change where a coordinate drops one step.
-        let (mut base, mut down) = (0u64, [0u64; MAX_DIM]);
+        let (mut base, mut down) = (P::default(), [P::default(); MAX_DIM]);
         for (i, &c) in s.base().iter().enumerate() {
             let x = (i64::from(c) + bias) as u64;
             let (Some(a), Some(b)) = (self.field(i, x), self.field(i, x.wrapping_sub(1))) else {
                 return false;
             };
-            base |= a;
+            base = base.wrapping_add(a);
             down[i] = b.wrapping_sub(a);
         }
         let parts = s.parts();
@@ -218,7 +273,7 @@ impl<const W: usize> Packer<W> {
                 m &= m - 1;
             }
         }
-        let index = u64::from(index);
+        let index = P::from_u64(u64::from(index));
         let mut at = 0;
         for (i, &m) in parts.iter().enumerate() {
             if m.count_ones() < 2 {
@@ -262,22 +317,24 @@ impl<const W: usize> Packer<W> {
 
     /// The key of a packed pair.
     #[inline]
-    pub fn key(&self, packed: u64) -> [u64; W] {
-        let mut v = 0u128;
+    pub fn key(&self, packed: P) -> [u64; W] {
+        let mut key = [0u64; W];
         for (f, pieces) in self.pieces.iter().enumerate() {
             let start = self.place(f).0;
             for p in pieces {
-                let x = ((packed >> p.at) & mask(p.bits)) + p.low;
-                v |= u128::from(x) << (start + p.from);
+                // A piece lies within one word of the key.
+                let x = ((packed >> p.at).low_u64() & mask(p.bits)) + p.low;
+                let bit = start + p.from;
+                key[(bit / 64) as usize] |= x << (bit % 64);
             }
         }
-        std::array::from_fn(|i| (v >> (64 * i)) as u64)
+        key
     }
 
     /// The index of a packed pair.
     #[inline]
-    pub fn index(&self, packed: u64) -> u32 {
-        (packed & mask(self.index_bits)) as u32
+    pub fn index(&self, packed: P) -> u32 {
+        (packed.low_u64() & mask(self.index_bits)) as u32
     }
 }
 
@@ -297,7 +354,7 @@ const PARALLEL_SORT: usize = 1 << 16;
 /// Sorts distinct values on every thread of the pool: cut at sampled splitters into a few
 /// buckets a thread, each bucket sorted alone. Distinct values have one sorted order, so the
 /// result does not depend on the threads.
-pub(super) fn par_sort_distinct(v: &mut [u64]) {
+pub(super) fn par_sort_distinct<T: Copy + Ord + Default + Send + Sync>(v: &mut [T]) {
     let threads = rayon::current_num_threads();
     if threads == 1 || v.len() < PARALLEL_SORT {
         v.sort_unstable();
@@ -306,15 +363,15 @@ pub(super) fn par_sort_distinct(v: &mut [u64]) {
     let buckets = 4 * threads;
     // Splitters: every 32nd of a sorted sample of 32 per bucket.
     let step = (v.len() / (32 * buckets)).max(1);
-    let mut sample: Vec<u64> = v.iter().step_by(step).copied().collect();
+    let mut sample: Vec<T> = v.iter().step_by(step).copied().collect();
     sample.sort_unstable();
-    let splitters: Vec<u64> = (1..buckets)
+    let splitters: Vec<T> = (1..buckets)
         .map(|b| sample[b * sample.len() / buckets])
         .collect();
-    let bucket = |x: u64| splitters.partition_point(|&s| s <= x);
+    let bucket = |x: T| splitters.partition_point(|&s| s <= x);
     // Each chunk puts its values in bucket order in a copy, counting each bucket's.
     let chunk = v.len().div_ceil(threads);
-    let mut copy = vec![0u64; v.len()];
+    let mut copy = vec![T::default(); v.len()];
     let counts: Vec<Vec<usize>> = v
         .par_chunks(chunk)
         .zip(copy.par_chunks_mut(chunk))
@@ -412,16 +469,16 @@ mod tests {
             .collect()
     }
 
-    /// Packs pairs of several codecs (one and two words, fields cut where a word ends) and
-    /// checks that the packed values sort as the pairs do and unpack to them.
-    fn packs_in_order<const W: usize>(d: usize, l: usize, bits: u32, lo: i32, hi: i32) {
+    /// Packs pairs of a codec (one to four words, fields cut where a word ends) into `P`s
+    /// and checks that the packed values sort as the pairs do and unpack to them.
+    fn packs_in_order<const W: usize, P: Word>(d: usize, l: usize, bits: u32, lo: i32, hi: i32) {
         let codec = KeyCodec::new(d, l, bits).unwrap();
         assert!(codec.words() <= W);
         let (los, his) = (vec![lo; d], vec![hi; d]);
         let count = 1000;
-        let packer = Packer::<W>::new(&codec, &los, &his, count).unwrap();
+        let packer = Packer::<W, P>::new(&codec, &los, &his, count).unwrap();
         let pairs = random_pairs::<W>(&codec, &los, &his, count as u32, 4000, 7 + bits as u64);
-        let mut packed: Vec<u64> = pairs
+        let mut packed: Vec<P> = pairs
             .iter()
             .map(|(k, i)| packer.pack(k, *i).unwrap())
             .collect();
@@ -443,12 +500,23 @@ mod tests {
     #[test]
     fn packed_pairs_sort_as_the_pairs_and_unpack_to_them() {
         // A surface in R^3 with no box: 21-bit coordinates, a part field cut by the word's end.
-        packs_in_order::<2>(3, 2, 21, -300, 250);
-        packs_in_order::<2>(3, 3, 21, 1 << 19, (1 << 19) + 40);
+        packs_in_order::<2, u64>(3, 2, 21, -300, 250);
+        packs_in_order::<2, u64>(3, 3, 21, 1 << 19, (1 << 19) + 40);
         // One word; a coordinate cut by the word's end (R^4, 15 bits).
-        packs_in_order::<1>(3, 1, 12, -5, 7);
-        packs_in_order::<2>(4, 3, 15, -100, 100);
-        packs_in_order::<2>(4, 4, 17, -1, 0);
+        packs_in_order::<1, u64>(3, 1, 12, -5, 7);
+        packs_in_order::<2, u64>(4, 3, 15, -100, 100);
+        packs_in_order::<2, u64>(4, 4, 17, -1, 0);
+        // Into 128 bits: three words (R^6, coordinates cut where words end), four (R^8).
+        packs_in_order::<3, u128>(6, 3, 21, -300, 250);
+        packs_in_order::<4, u128>(8, 6, 22, -20, 20);
+        packs_in_order::<2, u128>(3, 2, 21, -300, 250);
+        assert!(Packer::<3, u64>::new(
+            &KeyCodec::new(6, 3, 21).unwrap(),
+            &[-300; 6],
+            &[250; 6],
+            1000
+        )
+        .is_none());
     }
 
     #[test]
@@ -467,6 +535,10 @@ mod tests {
         // 10 coordinates of 21 bits and 4-bit parts over a range of 2^20: too wide.
         let wide = KeyCodec::new(4, 4, 21).unwrap();
         assert!(Packer::<2>::new(&wide, &[-(1 << 19); 4], &[1 << 19; 4], 1 << 20).is_none());
+        // 128 bits: ten coordinates over 2^20 values are too many.
+        let ten = KeyCodec::new(10, 9, 21).unwrap();
+        assert!(Packer::<4, u128>::new(&ten, &[-(1 << 19); 10], &[1 << 19; 10], 9).is_none());
+        assert!(Packer::<4, u128>::new(&ten, &[-3; 10], &[3; 10], 9).is_some());
         assert!(
             Packer::<2>::new(&KeyCodec::new(10, 9, 12).unwrap(), &[0; 10], &[3; 10], 9).is_none()
         );
@@ -516,6 +588,38 @@ mod tests {
             }
         }
         assert!(seen > 5_000, "{seen}");
+        // Into 128 bits: keys of three and four words, in R^6 to R^8.
+        let mut seen = 0;
+        for (d, l, bits) in [(6, 3, 21), (6, 5, 20), (7, 5, 20), (8, 6, 22), (8, 7, 13)] {
+            let up = KeyCodec::new(d, l + 1, bits).unwrap();
+            assert!(up.words() > 2 && up.words() <= 4, "{d} {l} {bits}");
+            let r = 30;
+            let (lo, hi) = (vec![-r - 2; d], vec![r; d]);
+            let packer = Packer::<4, u128>::new(&up, &lo, &hi, 1000).unwrap();
+            for _ in 0..200 {
+                let s = random_simplex(&mut rng, d, l, r - 2);
+                let mut want = Vec::new();
+                s.for_each_cofacet(|t| {
+                    let mut key = [0u64; 4];
+                    up.encode(t, &mut key).unwrap();
+                    want.push(packer.pack(&key, 77).unwrap());
+                    assert_eq!(
+                        (
+                            packer.key(*want.last().unwrap()),
+                            packer.index(*want.last().unwrap())
+                        ),
+                        (key, 77)
+                    );
+                });
+                let mut got = vec![0u128; s.cofacet_count() as usize];
+                assert!(packer.cofacets(&s, 77, &mut got), "d {d} l {l} {s:?}");
+                got.sort_unstable();
+                want.sort_unstable();
+                assert_eq!(got, want, "d {d}, l {l}, bits {bits}: {s:?}");
+                seen += got.len();
+            }
+        }
+        assert!(seen > 2_000, "{seen}");
         // A base vertex on the box's lower side: its rotated cofacets leave the box.
         let up = KeyCodec::new(2, 1, 8).unwrap();
         let packer = Packer::<2>::new(&up, &[0, 0], &[5, 5], 10).unwrap();
