@@ -1118,3 +1118,30 @@ fn a_device_verdict_the_cpu_contradicts_is_a_device_bound_error() {
     // The same scan with the CPU's own verdicts works.
     assert!(exhaustive(&p.system, &tri, &CpuOracle::new(&p.system), &opts).is_ok());
 }
+
+#[test]
+fn the_points_the_crossing_checks_keep_are_the_points() {
+    // The checks keep S's points; later copies are the points computed afresh, bit for bit.
+    for (name, params, edge) in [
+        ("sphere", vec![], 0.1),
+        ("flat-torus", vec![], 0.3),
+        ("sphere", vec![("d", 8.0)], 0.8),
+    ] {
+        let p = problem(name, &params, edge);
+        let s = run(&p, None, false);
+        let fresh = s.points();
+        let (d, bytes) = (s.ambient_dim(), s.memory_bytes());
+        assert!(s.len() > 100, "{name}");
+        s.check_crossings(&p.system);
+        assert_eq!(s.memory_bytes(), bytes + s.len() * d * 8, "{name}: counted");
+        let bits = |v: &[f64]| -> Vec<u64> { v.iter().map(|x| x.to_bits()).collect() };
+        assert!(
+            bits(&s.points()) == bits(&fresh),
+            "{name}: the kept points differ"
+        );
+        assert!(
+            (0..s.len()).all(|i| bits(&s.point(i)) == bits(&fresh[i * d..(i + 1) * d])),
+            "{name}"
+        );
+    }
+}

@@ -155,8 +155,9 @@ impl<'a, const W: usize> Engine<'a, W> {
                 0
             };
         // After the trace, the sample copies the vertex set, and its check for poles holds
-        // two values per simplex and equation: room for them is kept.
-        let after = self.verts.memory_bytes() + 2 * (self.s.len() + new_keys) * self.ctx.k * 8;
+        // two values per simplex and equation and keeps the points: room for them is kept.
+        let after = self.verts.memory_bytes()
+            + (self.s.len() + new_keys) * (2 * self.ctx.k + self.ctx.d) * 8;
         let need = crate::memory::in_use(self.bytes()) + (next_bytes + growth + after) as u64;
         if need > self.ctx.max_memory {
             self.stats.stopped = Some(StopReason::MemoryLimit {

@@ -1,6 +1,8 @@
 //! The sample S of a trace or scan: the crossed simplices as compact keys, the values of f at
 //! their lattice vertices, and the points computed from them on demand.
 
+use std::sync::OnceLock;
+
 use rayon::prelude::*;
 
 use super::engine::Engine;
@@ -16,7 +18,9 @@ use crate::triangulation::{KeyCodec, KeySet, Simplex, Triangulation};
 /// S stores keys, not points: it keeps the values of f at the lattice vertices of its
 /// simplices, and a point is the intersection test run again on them (the same f64
 /// arithmetic as the trace, so the same bits, whichever backend traced). That is 8 d bytes
-/// per simplex less to hold; [`Sample::points`] computes them all when needed.
+/// per simplex less to hold during the trace; [`Sample::points`] computes them all when
+/// needed. [`Sample::check_crossings`], which needs them all, keeps them: the cell complex
+/// and the exports then copy them instead of computing them again.
 ///
 /// ```
 /// use isomesh::Mesher;
@@ -41,6 +45,8 @@ pub struct Sample {
     tri: Triangulation,
     rim_keys: Vec<u64>,
     rim_points: Vec<f64>,
+    /// The points, d per simplex, once [`Sample::check_crossings`] has computed them.
+    points: OnceLock<Vec<f64>>,
     /// What it took.
     pub stats: TraceStats,
 }
@@ -135,8 +141,12 @@ impl Sample {
         out
     }
 
-    /// All points, d per simplex, computed in parallel.
+    /// All points, d per simplex: a copy of those [`Sample::check_crossings`] kept, else
+    /// computed in parallel.
     pub fn points(&self) -> Vec<f64> {
+        if let Some(points) = self.points.get() {
+            return points.clone();
+        }
         let d = self.ambient_dim();
         let mut out = vec![0.0; self.len() * d];
         out.par_chunks_mut(256 * d).enumerate().for_each_init(
@@ -174,19 +184,23 @@ impl Sample {
     /// from their point moves it less than an edge and [`rank_ratio`](crate::expr::rank_ratio)
     /// there, against f's slope 2 edges about it, is under 1/4: within about an edge of a
     /// point where branches of M cross.
+    ///
+    /// The sample keeps the points computed here (8 d bytes per simplex, counted in
+    /// [`Sample::memory_bytes`]).
     pub fn check_crossings(&self, f: &dyn ImplicitFunction) -> CrossingChecks {
         const CHUNK: usize = 256;
         let (d, k) = (self.ambient_dim(), self.codim());
         let n = self.len();
+        let mut all = vec![0.0; n * d];
         // Per crossing and component: the spread of the vertex values, negated where |f| at
         // the point exceeds half of it, NaN where the point is unknown.
-        let marked: Vec<f64> = (0..n.div_ceil(CHUNK))
-            .into_par_iter()
+        let marked: Vec<f64> = all
+            .par_chunks_mut(CHUNK * d)
+            .enumerate()
             .map_init(
                 || self.point_work(),
-                |w, c| {
+                |w, (c, points)| {
                     let range = c * CHUNK..((c + 1) * CHUNK).min(n);
-                    let mut points = vec![0.0; range.len() * d];
                     let mut spread = vec![0.0f64; range.len() * k];
                     let mut low = vec![f64::INFINITY; k];
                     for (i, (p, m)) in range
@@ -205,7 +219,7 @@ impl Sample {
                         m.iter_mut().zip(&low).for_each(|(h, l)| *h -= l);
                     }
                     let mut at = vec![0.0; range.len() * k];
-                    f.eval_batch(&points, &mut at);
+                    f.eval_batch(points, &mut at);
                     for ((m, a), p) in spread
                         .chunks_exact_mut(k)
                         .zip(at.chunks_exact(k))
@@ -224,6 +238,8 @@ impl Sample {
             )
             .flatten_iter()
             .collect();
+        // Kept, unless an earlier check kept the same points already.
+        let points = self.points.get_or_init(|| all);
         let medians: Vec<f64> = (0..k)
             .map(|c| {
                 let mut v: Vec<f64> = marked
@@ -267,17 +283,13 @@ impl Sample {
         let edge = self.tri.edge();
         let singular: Vec<Vec<f64>> = low
             .par_iter()
-            .map_init(
-                || self.point_work(),
-                |w, &(_, i)| {
-                    let mut p = vec![0.0; d];
-                    self.point_into(i, w, &mut p);
-                    let near = p.iter().all(|v| v.is_finite())
-                        && crate::expr::system::newton_step_within(f, &p, edge)
-                        && crate::expr::rank_ratio(f, &p, 2.0 * edge).is_some_and(|r| r < 0.25);
-                    near.then_some(p)
-                },
-            )
+            .map(|&(_, i)| {
+                let p = points[i * d..(i + 1) * d].to_vec();
+                let near = p.iter().all(|v| v.is_finite())
+                    && crate::expr::system::newton_step_within(f, &p, edge)
+                    && crate::expr::rank_ratio(f, &p, 2.0 * edge).is_some_and(|r| r < 0.25);
+                near.then_some(p)
+            })
             .flatten()
             .collect();
         CrossingChecks {
@@ -315,11 +327,12 @@ impl Sample {
         v.sort_unstable();
         v
     }
-    /// Bytes held: keys, vertex keys and values, rim.
+    /// Bytes held: keys, vertex keys and values, rim, and the points once kept.
     pub fn memory_bytes(&self) -> usize {
         (self.keys.capacity() + self.rim_keys.capacity()) * 8
             + self.vertices.memory_bytes()
             + (self.values.capacity() + self.rim_points.capacity()) * 8
+            + self.points.get().map_or(0, |p| p.capacity() * 8)
     }
 }
 
@@ -358,6 +371,7 @@ pub(super) fn sample_from<const W: usize>(
         tri: tri.clone(),
         rim_keys: engine.rim.into_words(),
         rim_points: engine.rim_points,
+        points: OnceLock::new(),
         stats,
     })
 }
