@@ -972,6 +972,18 @@ mod tests {
         Packer::<W, P>::new(&c1, &lo, &hi, s.len() + s.rim_len()).is_some()
     }
 
+    /// The sample of preset `name` with `params`, traced at `edge`.
+    fn traced(name: &str, params: &[(String, f64)], edge: f64) -> Sample {
+        let mut p = preset(name, params).unwrap();
+        p.triangulation.edge = Some(edge);
+        let tri = p.triangulation.build(p.dim()).unwrap();
+        let opts = TraceOptions {
+            seeds: p.seeds.clone(),
+            ..TraceOptions::default()
+        };
+        trace(&p.system, &tri, &CpuOracle::new(&p.system), &opts).unwrap()
+    }
+
     #[test]
     fn packed_and_wide_pairs_give_the_same_cells() {
         // The sphere with no box (two-word keys, a part field cut where a word ends), and
@@ -984,28 +996,14 @@ mod tests {
         assert!(s.rim_len() > 10 && packs::<1, u64>(&s));
         assert_eq!(raw_of::<1>(&s, true), raw_of::<1>(&s, false));
         // The flat torus in R^4: two levels, four-dimensional keys.
-        let mut p = preset("flat-torus", &[]).unwrap();
-        p.triangulation.edge = Some(0.3);
-        let tri = p.triangulation.build(4).unwrap();
-        let opts = TraceOptions {
-            seeds: p.seeds.clone(),
-            ..TraceOptions::default()
-        };
-        let s = trace(&p.system, &tri, &CpuOracle::new(&p.system), &opts).unwrap();
+        let s = traced("flat-torus", &[], 0.3);
         // A coordinate cut where a word ends.
         assert!(s.len() > 300 && packs::<2, u64>(&s));
         let packed = raw_of::<2>(&s, true);
         assert_eq!(packed.len(), 3);
         assert_eq!(packed, raw_of::<2>(&s, false));
         // S^2 in R^8: keys of four words, which pack into 128 bits, not 64.
-        let mut p = preset("sphere", &[("d".into(), 8.0)]).unwrap();
-        p.triangulation.edge = Some(0.5);
-        let tri = p.triangulation.build(8).unwrap();
-        let opts = TraceOptions {
-            seeds: p.seeds.clone(),
-            ..TraceOptions::default()
-        };
-        let s = trace(&p.system, &tri, &CpuOracle::new(&p.system), &opts).unwrap();
+        let s = traced("sphere", &[("d".into(), 8.0)], 0.5);
         assert!(s.len() > 1000 && !packs::<4, u64>(&s) && packs::<4, u128>(&s));
         let packed = raw_of::<4>(&s, true);
         assert_eq!(packed.len(), 3);
