@@ -101,10 +101,12 @@ fn raw_levels<const W: usize>(
         }
         let cj = KeyCodec::new(d, k + j, bits)?;
         let Survey { counts, lo, hi } = survey(&prev, &prev_codec);
-        let narrow = Packer::<W, u64>::new(&cj, &lo, &hi, prev.len()).filter(|_| packing);
-        let wide = Packer::<W, u128>::new(&cj, &lo, &hi, prev.len())
-            .filter(|_| packing && narrow.is_none());
-        let packed_bytes = match (&narrow, &wide) {
+        let in_u64 = Packer::<W, u64>::new(&cj, &lo, &hi, prev.len()).filter(|_| packing);
+        let in_u128 = match in_u64 {
+            None if packing => Packer::<W, u128>::new(&cj, &lo, &hi, prev.len()),
+            _ => None,
+        };
+        let packed_bytes = match (&in_u64, &in_u128) {
             (Some(_), _) => Some(8),
             (None, Some(_)) => Some(16),
             (None, None) => None,
@@ -131,7 +133,7 @@ fn raw_levels<const W: usize>(
             run,
         };
         // All interior: clipping adds the boundary cells.
-        let packed = match (&narrow, &wide) {
+        let packed = match (&in_u64, &in_u128) {
             (Some(p), _) => packed_level(p, &level, &mut defects)?,
             (None, Some(p)) => packed_level(p, &level, &mut defects)?,
             (None, None) => None,

@@ -9,7 +9,7 @@
 //! bits packed.
 
 use std::fmt::Debug;
-use std::ops::{BitAnd, BitOr, BitOrAssign, Shl, Shr};
+use std::ops::{BitOr, BitOrAssign, Shl, Shr};
 
 use rayon::prelude::*;
 
@@ -25,7 +25,6 @@ pub(super) trait Word:
     + Debug
     + Shl<u32, Output = Self>
     + Shr<u32, Output = Self>
-    + BitAnd<Output = Self>
     + BitOr<Output = Self>
     + BitOrAssign
 {
@@ -80,9 +79,8 @@ struct Piece {
 /// order of the (key, index) pairs.
 ///
 /// Keys of `W` words compare word 0 first: as the integer V whose base-2^64 digits are the
-/// words, word 0 the highest, whose
-/// bits are the codec's fields (coordinates, then each element's part), a field cut where a
-/// word ends becoming two pieces. Packed, the pieces keep their order of significance in V,
+/// words, word 0 the highest, whose bits are the codec's fields (coordinates, then each
+/// element's part), a field cut where a word ends becoming two pieces. Packed, the pieces keep their order of significance in V,
 /// each less its least value (a coordinate's, when it is one piece): an order-preserving map
 /// of each piece, so of V. A packed key is the sum of its fields' packed bits, so the
 /// cofacets of a simplex are packed from its own fields ([`Packer::cofacets`]).

@@ -1,5 +1,6 @@
 //! The sample S of a trace or scan: the crossed simplices as compact keys, the values of f at
-//! their lattice vertices, and the points computed from them on demand.
+//! their lattice vertices, and the points computed from them on demand (and kept once the
+//! crossing checks have computed them all).
 
 use std::sync::OnceLock;
 
@@ -134,8 +135,17 @@ impl Sample {
             .barycentric_point(&w.lambda, |j, v| s.vertex_into(j, v), out);
     }
 
+    /// Point `i` as kept by [`Sample::check_crossings`], if it ran.
+    fn kept_point(&self, i: usize) -> Option<&[f64]> {
+        let d = self.ambient_dim();
+        self.points.get().map(|all| &all[i * d..(i + 1) * d])
+    }
+
     /// Point `i` (d coordinates): where M-hat crosses simplex `i`.
     pub fn point(&self, i: usize) -> Vec<f64> {
+        if let Some(p) = self.kept_point(i) {
+            return p.to_vec();
+        }
         let mut out = vec![0.0; self.ambient_dim()];
         self.point_into(i, &mut self.point_work(), &mut out);
         out
@@ -302,8 +312,14 @@ impl Sample {
     pub fn iter(&self) -> impl Iterator<Item = (Simplex, Vec<f64>)> + '_ {
         let mut w = self.point_work();
         (0..self.len()).map(move |i| {
-            let mut p = vec![0.0; self.ambient_dim()];
-            self.point_into(i, &mut w, &mut p);
+            let p = self.kept_point(i).map_or_else(
+                || {
+                    let mut p = vec![0.0; self.ambient_dim()];
+                    self.point_into(i, &mut w, &mut p);
+                    p
+                },
+                <[f64]>::to_vec,
+            );
             (self.simplex(i), p)
         })
     }
