@@ -896,11 +896,18 @@ mod tests {
             + size_of_val(&l.keys[..])
             + size_of_val(&l.cells.facets[..])
             + size_of_val(&l.mixed[..]);
-        let estimate = peak_bytes::<W>(count, Some(8)) as usize;
+        let estimate = peak_bytes::<W>(count, Some(size_of_val(&pairs[0]))) as usize;
         assert!(
             peak <= estimate && estimate <= 2 * peak,
             "{peak} {estimate}"
         );
+        // The estimate holds the worst case: as many cells as cofacets, each with a key, a
+        // flag and one facet index per pair.
+        assert_eq!(l.cells.facets.len() as u64, count);
+        let worst = 2 * size_of_val(&pairs[..])
+            + count as usize * (size_of::<[u64; W]>() + size_of_val(&l.mixed[0]))
+            + size_of_val(&l.cells.facets[..]);
+        assert!(worst <= estimate, "{worst} {estimate}");
         // What is held while level 2 is built: level 1, and its keys with their flags.
         let held = size_of_val(&l.cells.facets[..])
             + size_of_val(&l.cells.offsets[..])
