@@ -1,6 +1,7 @@
 //! Construction of the cell complex: cofacets sorted into levels, then clipping.
 
 use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
 use std::time::Instant;
 
 use rayon::prelude::*;
@@ -528,10 +529,11 @@ fn runs_of<T>(sorted: &[T], want: usize, same: impl Fn(&T, &T) -> bool) -> Vec<&
 /// boundary cells of the cell's mixed facets.
 fn clip(s: &Sample, domain: &Domain, mut raw: Vec<RawLevel>, d: usize, m: usize) -> Complex {
     let n = s.len();
-    // Boundary vertices, one per mixed edge, where the edge leaves the domain.
-    let mut points = s.points();
+    // Boundary vertices, one per mixed edge, where the edge leaves the domain. S's points
+    // are shared with the sample, and copied only where boundary vertices follow them.
+    let mut points = s.shared_points();
     let edges = raw.first();
-    if let Some(e) = edges {
+    if let Some(e) = edges.filter(|e| e.mixed.contains(&true)) {
         let cut: Vec<f64> = (0..e.cells.len())
             .into_par_iter()
             .filter(|&i| e.mixed[i])
@@ -547,7 +549,10 @@ fn clip(s: &Sample, domain: &Domain, mut raw: Vec<RawLevel>, d: usize, m: usize)
                     .collect::<Vec<_>>()
             })
             .collect();
-        points.extend(cut);
+        let mut all = Vec::with_capacity(points.len() + cut.len());
+        all.extend_from_slice(&points);
+        all.extend(cut);
+        points = Arc::new(all);
     }
     // boundary_index[j][i]: for mixed j-cell i (j >= 1), its boundary (j-1)-cell.
     let boundary_index: Vec<Vec<u32>> = raw
@@ -793,6 +798,24 @@ mod tests {
         let n = c.counts();
         assert_eq!(n[0] as i64 - n[1] as i64 + n[2] as i64, 2, "{n:?}");
         assert!(keys.defects.is_empty() && c.stats.defects == 0);
+    }
+
+    #[test]
+    fn the_complex_shares_the_points_the_sample_kept() {
+        // Closed: the complex's vertices are S's points, held once.
+        let (p, s) = sphere(None);
+        s.check_crossings(&p.system);
+        let (c, _) = build(&s, &Domain::new(&p.system, None), u64::MAX, None, false).unwrap();
+        assert!(std::ptr::eq(c.points(), &s.shared_points()[..]));
+        // Cut by a box: S's points and the boundary vertices after them, in a copy.
+        let bbox = vec![[-2.0, 2.0], [-2.0, 2.0], [-2.0, 0.3]];
+        let (p, s) = sphere(Some(bbox.clone()));
+        s.check_crossings(&p.system);
+        let domain = Domain::new(&p.system, Some(&bbox));
+        let (c, _) = build(&s, &domain, u64::MAX, None, false).unwrap();
+        let kept = s.shared_points();
+        assert!(c.vertex_count() > s.len());
+        assert_eq!(&c.points()[..kept.len()], &kept[..]);
     }
 
     #[test]

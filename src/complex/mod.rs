@@ -20,7 +20,7 @@ mod packed;
 pub mod surface;
 pub mod topology;
 
-use std::sync::OnceLock;
+use std::sync::{Arc, OnceLock};
 
 use serde::Serialize;
 
@@ -110,7 +110,9 @@ pub struct ComplexStats {
 pub struct Complex {
     d: usize,
     m: usize,
-    points: Vec<f64>,
+    /// d per vertex: S's points (shared with the sample where no boundary vertex is
+    /// added), then the boundary vertices.
+    points: Arc<Vec<f64>>,
     interior_vertices: usize,
     levels: Vec<Level>,
     /// The 2-cells as polygons, oriented consistently where they can be, once asked for
@@ -161,7 +163,7 @@ impl Complex {
         Complex {
             d,
             m: levels.len(),
-            points,
+            points: Arc::new(points),
             interior_vertices,
             levels,
             polygons: OnceLock::new(),

@@ -164,7 +164,7 @@ pub fn write_sample_to(
         let header: Vec<String> = (1..=d).map(|i| format!("x{i}")).collect();
         writeln!(w, "{}", header.join(","))?;
     }
-    for p in sample.points().chunks_exact(d) {
+    for p in sample.shared_points().chunks_exact(d) {
         for (i, v) in p.iter().enumerate() {
             if i > 0 {
                 w.write_all(sep.as_bytes())?;

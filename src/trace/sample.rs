@@ -2,7 +2,7 @@
 //! their lattice vertices, and the points computed from them on demand (and kept once the
 //! crossing checks have computed them all).
 
-use std::sync::OnceLock;
+use std::sync::{Arc, OnceLock};
 
 use rayon::prelude::*;
 
@@ -46,8 +46,9 @@ pub struct Sample {
     tri: Triangulation,
     rim_keys: Vec<u64>,
     rim_points: Vec<f64>,
-    /// The points, d per simplex, once [`Sample::check_crossings`] has computed them.
-    points: OnceLock<Vec<f64>>,
+    /// The points, d per simplex, once [`Sample::check_crossings`] has computed them;
+    /// shared with the complexes built on the sample.
+    points: OnceLock<Arc<Vec<f64>>>,
     /// What it took.
     pub stats: TraceStats,
 }
@@ -155,7 +156,7 @@ impl Sample {
     /// computed in parallel.
     pub fn points(&self) -> Vec<f64> {
         if let Some(points) = self.points.get() {
-            return points.clone();
+            return points.to_vec();
         }
         let d = self.ambient_dim();
         let mut out = vec![0.0; self.len() * d];
@@ -168,6 +169,15 @@ impl Sample {
             },
         );
         out
+    }
+
+    /// The points kept by [`Sample::check_crossings`], shared rather than copied; computed
+    /// (and not kept) where it has not run.
+    pub(crate) fn shared_points(&self) -> Arc<Vec<f64>> {
+        match self.points.get() {
+            Some(points) => Arc::clone(points),
+            None => Arc::new(self.points()),
+        }
     }
 
     /// How many crossings look like a jump of f rather than a zero: for some component c,
@@ -249,7 +259,7 @@ impl Sample {
             .flatten_iter()
             .collect();
         // Kept, unless an earlier check kept the same points already.
-        let points = self.points.get_or_init(|| all);
+        let points = self.points.get_or_init(|| Arc::new(all));
         let medians: Vec<f64> = (0..k)
             .map(|c| {
                 let mut v: Vec<f64> = marked
