@@ -549,10 +549,16 @@ fn clip(s: &Sample, domain: &Domain, mut raw: Vec<RawLevel>, d: usize, m: usize)
                     .collect::<Vec<_>>()
             })
             .collect();
-        let mut all = Vec::with_capacity(points.len() + cut.len());
-        all.extend_from_slice(&points);
-        all.extend(cut);
-        points = Arc::new(all);
+        match Arc::get_mut(&mut points) {
+            // Computed for this complex alone (the sample kept none).
+            Some(own) => own.extend(cut),
+            None => {
+                let mut all = Vec::with_capacity(points.len() + cut.len());
+                all.extend_from_slice(&points);
+                all.extend(cut);
+                points = Arc::new(all);
+            }
+        }
     }
     // boundary_index[j][i]: for mixed j-cell i (j >= 1), its boundary (j-1)-cell.
     let boundary_index: Vec<Vec<u32>> = raw
