@@ -366,10 +366,10 @@ fn packed_level<const W: usize, P: Word>(
     below: &Below<'_, W>,
     defects: &mut Vec<u32>,
 ) -> Result<Option<Cells<W>>> {
-    let Some(mut pairs) = packed_pairs(below.keys, below.codec, below.counts, packer)? else {
+    let Some(pairs) = packed_pairs(below.keys, below.codec, below.counts, packer)? else {
         return Ok(None);
     };
-    par_sort_distinct(&mut pairs);
+    let pairs = par_sort_distinct(pairs);
     Ok(Some(group_cofacets(
         &pairs,
         packer,

@@ -8,6 +8,8 @@
 //! Keys of three or more words (a 3-manifold in R^6, anything in R^8 and up) often fit 128
 //! bits packed.
 
+use std::cmp::Reverse;
+use std::collections::binary_heap::{BinaryHeap, PeekMut};
 use std::fmt::Debug;
 use std::ops::{BitOr, BitOrAssign, Shl, Shr};
 
@@ -349,15 +351,18 @@ fn mask(bits: u32) -> u64 {
 /// Fewest values sorted in parallel: below, one thread sorts them.
 const PARALLEL_SORT: usize = 1 << 16;
 
-/// Sorts distinct values on every thread of the pool: cut at sampled splitters into a few
-/// buckets a thread, each bucket sorted alone. Distinct values have one sorted order, so the
+/// Sorts distinct values on every thread of the pool: each thread sorts a chunk in place,
+/// then the sorted chunks are merged into a new vector, cut at sampled splitters into a few
+/// buckets a thread, each bucket merged alone. Distinct values have one sorted order, so the
 /// result does not depend on the threads.
-pub(super) fn par_sort_distinct<T: Copy + Ord + Default + Send + Sync>(v: &mut [T]) {
+pub(super) fn par_sort_distinct<T: Copy + Ord + Default + Send + Sync>(mut v: Vec<T>) -> Vec<T> {
     let threads = rayon::current_num_threads();
     if threads == 1 || v.len() < PARALLEL_SORT {
         v.sort_unstable();
-        return;
+        return v;
     }
+    let chunk = v.len().div_ceil(threads);
+    v.par_chunks_mut(chunk).for_each(|c| c.sort_unstable());
     let buckets = 4 * threads;
     // Splitters: every 32nd of a sorted sample of 32 per bucket.
     let step = (v.len() / (32 * buckets)).max(1);
@@ -366,52 +371,79 @@ pub(super) fn par_sort_distinct<T: Copy + Ord + Default + Send + Sync>(v: &mut [
     let splitters: Vec<T> = (1..buckets)
         .map(|b| sample[b * sample.len() / buckets])
         .collect();
-    let bucket = |x: T| splitters.partition_point(|&s| s <= x);
-    // Each chunk puts its values in bucket order in a copy, counting each bucket's.
-    let chunk = v.len().div_ceil(threads);
-    let mut copy = vec![T::default(); v.len()];
-    let counts: Vec<Vec<usize>> = v
-        .par_chunks(chunk)
-        .zip(copy.par_chunks_mut(chunk))
-        .map(|(src, dst)| {
-            let mut count = vec![0usize; buckets];
-            for &x in src {
-                count[bucket(x)] += 1;
-            }
-            let mut at: Vec<usize> = count
-                .iter()
-                .scan(0, |s, &c| {
-                    let a = *s;
-                    *s += c;
-                    Some(a)
-                })
-                .collect();
-            for &x in src {
-                let b = bucket(x);
-                dst[at[b]] = x;
-                at[b] += 1;
-            }
-            count
-        })
-        .collect();
-    // Bucket b's slot in `v`: the chunks' pieces of bucket b, one after the other.
+    // Each chunk cut at the splitters: pieces[b] holds bucket b's piece of every chunk.
+    let mut pieces: Vec<Vec<&[T]>> = vec![Vec::with_capacity(threads); buckets];
+    for c in v.chunks(chunk) {
+        let mut rest = c;
+        for (b, s) in splitters.iter().enumerate() {
+            let (piece, tail) = rest.split_at(rest.partition_point(|x| x < s));
+            pieces[b].push(piece);
+            rest = tail;
+        }
+        pieces[buckets - 1].push(rest);
+    }
+    let mut out = vec![T::default(); v.len()];
     let mut slots = Vec::with_capacity(buckets);
-    let mut rest = &mut v[..];
-    for b in 0..buckets {
-        let len = counts.iter().map(|c| c[b]).sum();
-        let (slot, tail) = rest.split_at_mut(len);
+    let mut rest = &mut out[..];
+    for p in &pieces {
+        let (slot, tail) = rest.split_at_mut(p.iter().map(|x| x.len()).sum());
         slots.push(slot);
         rest = tail;
     }
-    slots.into_par_iter().enumerate().for_each(|(b, slot)| {
-        let mut at = 0;
-        for (c, count) in counts.iter().enumerate() {
-            let start = c * chunk + count[..b].iter().sum::<usize>();
-            slot[at..at + count[b]].copy_from_slice(&copy[start..start + count[b]]);
-            at += count[b];
+    slots
+        .into_par_iter()
+        .zip(pieces)
+        .for_each(|(slot, p)| merge_all(&p, slot));
+    out
+}
+
+/// Merges the sorted `runs` into `out` (as long as they are together): two by a plain
+/// merge, more through a heap of their heads (no scratch memory either way).
+fn merge_all<T: Copy + Ord>(runs: &[&[T]], out: &mut [T]) {
+    match runs {
+        [] => {}
+        [a] => out.copy_from_slice(a),
+        [a, b] => merge(a, b, out),
+        _ => {
+            let mut heads: BinaryHeap<Reverse<(T, usize)>> = runs
+                .iter()
+                .enumerate()
+                .filter_map(|(r, run)| Some(Reverse((*run.first()?, r))))
+                .collect();
+            let mut at = vec![0; runs.len()];
+            for o in out.iter_mut() {
+                // The runs are as long as `out` together.
+                let Some(mut head) = heads.peek_mut() else {
+                    break;
+                };
+                let Reverse((x, r)) = *head;
+                *o = x;
+                at[r] += 1;
+                match runs[r].get(at[r]) {
+                    Some(&next) => *head = Reverse((next, r)),
+                    None => drop(PeekMut::pop(head)),
+                }
+            }
         }
-        slot.sort_unstable();
-    });
+    }
+}
+
+/// Merges the sorted `a` and `b` into `out`, without branching on the comparisons.
+fn merge<T: Copy + Ord>(a: &[T], b: &[T], out: &mut [T]) {
+    debug_assert_eq!(a.len() + b.len(), out.len());
+    let (mut i, mut j) = (0, 0);
+    let mut o = 0;
+    while i < a.len() && j < b.len() {
+        let (x, y) = (a[i], b[j]);
+        let take_a = x <= y;
+        out[o] = if take_a { x } else { y };
+        i += usize::from(take_a);
+        j += usize::from(!take_a);
+        o += 1;
+    }
+    out[o..o + a.len() - i].copy_from_slice(&a[i..]);
+    o += a.len() - i;
+    out[o..].copy_from_slice(&b[j..]);
 }
 
 #[cfg(test)]
@@ -650,8 +682,26 @@ mod tests {
                 .num_threads(threads)
                 .build()
                 .unwrap();
-            pool.install(|| par_sort_distinct(&mut got));
+            let got = pool.install(|| par_sort_distinct(got));
             assert!(got == want, "{threads} threads");
+        }
+    }
+
+    #[test]
+    fn sorted_runs_of_any_lengths_merge_into_one() {
+        let cases: [&[&[u32]]; 5] = [
+            &[],
+            &[&[], &[]],
+            &[&[2, 9], &[]],
+            &[&[1, 4, 8], &[2, 3, 10, 11]],
+            &[&[], &[1, 4], &[2], &[], &[3, 5, 6], &[0, 7]],
+        ];
+        for runs in cases {
+            let mut want: Vec<u32> = runs.concat();
+            want.sort_unstable();
+            let mut got = vec![u32::MAX; want.len()];
+            merge_all(runs, &mut got);
+            assert_eq!(got, want, "{runs:?}");
         }
     }
 }
