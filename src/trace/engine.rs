@@ -184,28 +184,31 @@ impl<'a, const W: usize> Engine<'a, W> {
         self.must_stop_growing(next_bytes, 0)
     }
 
-    /// With no box: whether a simplex of `members` lies more than [`DEFAULT_EXTENT_STEPS`]
-    /// lattice steps from every seed.
-    fn beyond_extent(&self, members: &Members) -> bool {
-        self.beyond(members, DEFAULT_EXTENT_STEPS)
-    }
-
-    /// With no box: whether a simplex of `members` lies more than `steps` lattice steps
-    /// from every seed.
-    fn beyond(&self, members: &Members, steps: u32) -> bool {
+    /// With no box: how far the simplices of `members` lie from the seeds, in lattice steps:
+    /// the largest, over the members, of the distance (along the farthest lattice axis) from
+    /// a member's base vertex to its nearest seed's. `None` with a box or before any seed,
+    /// where no extent applies.
+    fn reach(&self, members: &Members) -> Option<u64> {
         let d = self.ctx.d;
         if self.ctx.domain.bbox.is_some() || self.origins.is_empty() {
-            return false;
+            return None;
         }
         let mut v = [0i32; crate::triangulation::MAX_DIM];
-        members.iter().any(|i| {
+        let far = members.iter().map(|i| {
             self.ctx.codec.decode_vertex(self.s.key(i), &mut v[..d]);
-            self.origins.chunks_exact(d).all(|o| {
-                o.iter()
-                    .zip(&v[..d])
-                    .any(|(a, b)| (i64::from(*a) - i64::from(*b)).unsigned_abs() > u64::from(steps))
-            })
-        })
+            self.origins
+                .chunks_exact(d)
+                .map(|o| {
+                    o.iter()
+                        .zip(&v[..d])
+                        .map(|(a, b)| (i64::from(*a) - i64::from(*b)).unsigned_abs())
+                        .max()
+                        .unwrap_or(0)
+                })
+                .min()
+                .unwrap_or(0)
+        });
+        Some(far.max().unwrap_or(0))
     }
 
     /// Breadth-first trace from the simplices `frontier` (indices into S, already evaluated)
@@ -247,7 +250,15 @@ impl<'a, const W: usize> Engine<'a, W> {
     }
 
     /// The loop of [`Engine::run`], from the level `front`.
+    ///
+    /// With no box it stops where a level reaches [`DEFAULT_EXTENT_STEPS`] lattice steps
+    /// from the seeds, or [`super::NO_BOX_BUDGET_STEPS`] once S is large. A level's simplices
+    /// are facets of cofacets of the level before, and every vertex of a simplex lies within
+    /// a step of its base vertex along each axis, so a level reaches at most two steps
+    /// farther than the one before: the reach is measured again only when that bound could
+    /// pass a limit.
     fn levels_from(&mut self, mut front: Frontier) -> Result<()> {
+        let mut reach = self.reach(&front.members);
         while !front.members.is_empty() {
             // Points only serve to test the domain here (the sample computes its own).
             let with_points = !self.ctx.domain.is_everywhere();
@@ -259,16 +270,24 @@ impl<'a, const W: usize> Engine<'a, W> {
                 let window = recent_levels(self.ctx.k);
                 levels.advance(&self.s, next.clone(), &self.verts, window);
             }
-            if self.beyond_extent(&front.members) {
+            let large = self.s.len() > super::NO_BOX_SIMPLICES;
+            let limit = u64::from(if large {
+                super::NO_BOX_BUDGET_STEPS
+            } else {
+                DEFAULT_EXTENT_STEPS
+            });
+            reach = reach.map(|r| r + 2);
+            if reach.is_some_and(|r| r > limit || self.ctx.reach_every_level()) {
+                reach = self.reach(&front.members);
+            }
+            if reach.is_some_and(|r| r > u64::from(DEFAULT_EXTENT_STEPS)) {
                 self.stats.stopped = Some(StopReason::NoBox {
                     steps: DEFAULT_EXTENT_STEPS,
                     distance: DEFAULT_EXTENT_STEPS as f64 * self.ctx.tri.edge(),
                 });
                 return Ok(());
             }
-            if self.s.len() > super::NO_BOX_SIMPLICES
-                && self.beyond(&front.members, super::NO_BOX_BUDGET_STEPS)
-            {
+            if large && reach.is_some_and(|r| r > u64::from(super::NO_BOX_BUDGET_STEPS)) {
                 self.stats.stopped = Some(StopReason::NoBoxTooLarge {
                     simplices: self.s.len() as u64,
                 });

@@ -306,6 +306,10 @@ pub(crate) struct TraceContext<'a> {
     /// deferred ones in the whole cache (unit tests only).
     #[cfg(test)]
     pub forget_vertices: bool,
+    /// Makes a trace with no box measure its reach at every level, not only where its
+    /// bound could pass a limit (unit tests only).
+    #[cfg(test)]
+    pub reach_every_level: bool,
 }
 
 impl TraceContext<'_> {
@@ -313,6 +317,16 @@ impl TraceContext<'_> {
     pub fn interrupted(&self) -> bool {
         self.cancel
             .is_some_and(|c| c.load(std::sync::atomic::Ordering::Relaxed))
+    }
+
+    /// Whether a trace with no box measures its reach at every level (a test's check of
+    /// the bound it uses otherwise).
+    #[inline]
+    pub fn reach_every_level(&self) -> bool {
+        #[cfg(test)]
+        return self.reach_every_level;
+        #[cfg(not(test))]
+        false
     }
 }
 
@@ -380,6 +394,8 @@ fn context<'a>(
         scramble_pivots: false,
         #[cfg(test)]
         forget_vertices: false,
+        #[cfg(test)]
+        reach_every_level: false,
     })
 }
 
@@ -543,6 +559,50 @@ mod tests {
                 );
                 assert_eq!(right.stats.oracle_calls, other.stats.oracle_calls, "{name}");
             }
+        }
+    }
+
+    /// With no box, a trace that measures how far its levels reach only where the bound of
+    /// two lattice steps a level could pass the extent stops at the same level, with the
+    /// same S, as one that measures every level.
+    #[test]
+    fn the_extent_stops_a_trace_where_measuring_every_level_would() {
+        let cases: [(&[&str], &[f64], f64); 3] = [
+            (&["x2 - 0.5*x1"], &[0.0, 0.0], 0.5),
+            (&["x1*x2 - 1"], &[1.0, 1.0], 0.5),
+            (
+                &["x1^2 + x2^2 - 1", "x3 - 0.25*x4"],
+                &[1.0, 0.0, 0.0, 0.0],
+                0.7,
+            ),
+        ];
+        for (eqs, seed, edge) in cases {
+            let d = seed.len();
+            let f = crate::expr::EquationSystem::parse_simple(d, eqs).unwrap();
+            let tri = crate::triangulation::Triangulation::coxeter(d)
+                .edge(edge)
+                .build()
+                .unwrap();
+            let oracle = CpuOracle::new(&f);
+            let opts = TraceOptions {
+                seeds: vec![seed.to_vec()],
+                ..TraceOptions::default()
+            };
+            let seeds = vec![crate::expr::newton_project(&f, seed, SEED_TOLERANCE).unwrap()];
+            let [bounded, every] = [false, true].map(|every| {
+                let mut ctx = context(&f, &tri, &oracle, &opts).unwrap();
+                ctx.reach_every_level = every;
+                let words = ctx.codec.words();
+                with_width!(words, trace_with(&f, ctx, &seeds, 0, 1)).unwrap()
+            });
+            assert!(
+                matches!(every.stats.stopped, Some(StopReason::NoBox { .. })),
+                "{eqs:?}: {:?}",
+                every.stats.stopped
+            );
+            assert_eq!(bounded.stats.stopped, every.stats.stopped, "{eqs:?}");
+            assert_eq!(bounded.stats.levels, every.stats.levels, "{eqs:?}");
+            assert_same_sample(&bounded, &every, &format!("{eqs:?}"));
         }
     }
 
