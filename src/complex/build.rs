@@ -83,6 +83,8 @@ fn raw_levels<const W: usize>(
     let (d, k) = (codec.ambient_dim(), codec.simplex_dim());
     let (n, r) = (s.len(), s.rim_len());
     let mut prev: Vec<[u64; W]> = (0..n + r)
+        .into_par_iter()
+        .with_min_len(CHUNK)
         .map(|i| {
             let src = if i < n { s.key(i) } else { s.rim_key(i - n) };
             let mut key = [0u64; W];
@@ -91,7 +93,7 @@ fn raw_levels<const W: usize>(
         })
         .collect();
     let mut prev_codec = codec;
-    let mut prev_mixed: Vec<bool> = (0..n + r).map(|i| i >= n).collect();
+    let mut prev_mixed: Vec<bool> = (0..n + r).into_par_iter().map(|i| i >= n).collect();
     let mut levels = Vec::with_capacity(d - k);
     let mut defects = Vec::new();
     for j in 1..=d - k {
@@ -427,6 +429,8 @@ fn group_cofacets<P: Sync, const W: usize>(
         }
     };
     let same = |a: &P, b: &P| read.group(a) == read.group(b);
+    // With no mixed cell below (no box cuts M), none here is mixed.
+    let any_mixed = prev_mixed.contains(&true);
     let runs = runs_of(pairs, run, same);
     // (cells, facets) of each run.
     let sizes: Vec<(usize, usize)> = runs
@@ -471,7 +475,8 @@ fn group_cofacets<P: Sync, const W: usize>(
                     Some(false) => defects.push(read.index(&group[0])),
                     Some(true) => {
                         k[c] = read.key(&group[0]);
-                        m[c] = group.iter().any(|p| prev_mixed[read.index(p) as usize]);
+                        m[c] =
+                            any_mixed && group.iter().any(|p| prev_mixed[read.index(p) as usize]);
                         for (slot, p) in l[f..f + group.len()].iter_mut().zip(group) {
                             *slot = read.index(p);
                         }
