@@ -508,23 +508,21 @@ fn run_len(len: usize) -> usize {
         .max(GROUP_CHUNK)
 }
 
-/// `sorted` cut into consecutive runs of at least `want` (at least 1) items, each cut
-/// where the key changes (`same` tells items of one key), so that no key spans two runs.
+/// `sorted` cut into consecutive runs of at least `want` (at least 1) items but the last,
+/// each cut where the key changes (`same` tells items of one key), so that no key spans two
+/// runs; none when `sorted` is empty.
 fn runs_of<T>(sorted: &[T], want: usize, same: impl Fn(&T, &T) -> bool) -> Vec<&[T]> {
     let want = want.max(1);
     let mut runs = Vec::new();
     let mut rest = sorted;
-    while rest.len() > want {
-        let mut cut = want;
+    while !rest.is_empty() {
+        let mut cut = want.min(rest.len());
         while cut < rest.len() && same(&rest[cut], &rest[cut - 1]) {
             cut += 1;
         }
         let (run, tail) = rest.split_at(cut);
         runs.push(run);
         rest = tail;
-    }
-    if !rest.is_empty() || runs.is_empty() {
-        runs.push(rest);
     }
     runs
 }
@@ -721,7 +719,7 @@ mod tests {
             }
         }
         let same = |a: &(u32, usize), b: &(u32, usize)| a.0 == b.0;
-        assert_eq!(runs_of(&pairs[..0], 3, same), vec![&pairs[..0]]);
+        assert!(runs_of(&pairs[..0], 3, same).is_empty());
         assert_eq!(runs_of(&pairs, 4, same).len(), 2);
     }
 
