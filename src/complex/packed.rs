@@ -84,8 +84,9 @@ struct Piece {
 /// words, word 0 the highest, whose bits are the codec's fields (coordinates, then each
 /// element's part), a field cut where a word ends becoming two pieces. Packed, the pieces
 /// keep their order of significance in V, each less its least value (a coordinate's, when
-/// it is one piece): an order-preserving map of each piece, so of V. A packed key is the sum of its fields' packed bits, so the
-/// cofacets of a simplex are packed from its own fields ([`Packer::cofacets`]).
+/// it is one piece): an order-preserving map of each piece, so of V. A packed key is the
+/// sum of its fields' packed bits, so the cofacets of a simplex are packed from its own
+/// fields ([`Packer::cofacets`]).
 #[derive(Clone, Debug)]
 pub(super) struct Packer<const W: usize, P = u64> {
     d: usize,
