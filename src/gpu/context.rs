@@ -24,7 +24,8 @@ impl AdapterSummary {
 /// The backends to probe, in turn, until one offers a usable adapter: those named by
 /// `WGPU_BACKEND` when it is set; else Vulkan, Metal and Dx12, then GL. GL (no f64 in
 /// shaders) is left unloaded where it is not needed: Mesa's EGL stack, loaded next to
-/// lavapipe, can abort the process at exit (a double free as one of its threads ends).
+/// lavapipe, can abort the process at exit (a double free as one of its threads ends; see
+/// [`on_own_thread`]).
 fn tiers() -> Vec<wgpu::Backends> {
     match wgpu::Backends::from_env() {
         Some(b) => vec![b],
@@ -52,7 +53,12 @@ fn rank(a: &wgpu::Adapter) -> (u8, u8, u8) {
 
 /// The adapters that run compute shaders and pass `keep`, best first, from the first
 /// backend tier that has any.
-fn compute_adapters(keep: impl Fn(&wgpu::Adapter) -> bool) -> Vec<wgpu::Adapter> {
+fn compute_adapters(keep: impl Fn(&wgpu::Adapter) -> bool + Sync) -> Vec<wgpu::Adapter> {
+    on_own_thread(|| probe(&keep))
+}
+
+/// [`compute_adapters`] on the calling thread.
+fn probe(keep: &(impl Fn(&wgpu::Adapter) -> bool + Sync)) -> Vec<wgpu::Adapter> {
     for backends in tiers() {
         let mut desc = wgpu::InstanceDescriptor::new_without_display_handle();
         desc.backends = backends;
@@ -72,6 +78,34 @@ fn compute_adapters(keep: impl Fn(&wgpu::Adapter) -> bool) -> Vec<wgpu::Adapter>
         }
     }
     Vec::new()
+}
+
+/// Runs `f` on a thread of its own and waits until that thread has ended.
+///
+/// The EGL dispatch library that the GL backend loads (libglvnd) keeps state for each thread
+/// that calls it, freed both when that thread ends and when the library is unloaded as the
+/// process exits. A run probes adapters on a worker of its thread pool; when the pool is
+/// dropped just before the process exits, that worker's end races the unloading, and glibc
+/// aborts the finished process with a double free (about one run in 500 with no Vulkan
+/// driver). A joined thread has ended, its state freed, before the probe returns. (A GL
+/// device in use is driven from the pool's threads too; that case stays open.) Runs `f` here
+/// when no thread can be started.
+fn on_own_thread<T: Send>(f: impl FnOnce() -> T + Send) -> T {
+    let mut f = Some(f);
+    let joined = std::thread::scope(|s| {
+        let slot = &mut f;
+        let spawned = std::thread::Builder::new()
+            .name("isomesh-gpu-probe".into())
+            .spawn_scoped(s, move || slot.take().map(|f| f()));
+        // `join` returns once the thread has ended, its thread-local destructors run (the
+        // scope's own wait ends as soon as the closure has returned).
+        spawned.ok().map(|h| h.join())
+    });
+    match joined {
+        Some(Ok(out)) => out.expect("the closure ran on the thread"),
+        Some(Err(panic)) => std::panic::resume_unwind(panic),
+        None => f.take().expect("no thread ran the closure")(),
+    }
 }
 
 /// Every adapter that runs compute shaders, best first. GL adapters are probed only when no
@@ -117,9 +151,15 @@ impl Gpu {
         Ok(g)
     }
 
-    /// Opens a device of the best adapter, not shared.
+    /// Opens a device of the best adapter, not shared, on a thread of its own
+    /// ([`on_own_thread`]).
     fn open_new(allow_software: bool) -> Result<Self> {
-        let adapter = compute_adapters(|a| {
+        on_own_thread(|| Self::open_here(allow_software))
+    }
+
+    /// [`Gpu::open_new`] on the calling thread.
+    fn open_here(allow_software: bool) -> Result<Self> {
+        let adapter = probe(&|a: &wgpu::Adapter| {
             allow_software || a.get_info().device_type != wgpu::DeviceType::Cpu
         })
         .into_iter()
