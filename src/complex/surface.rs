@@ -144,44 +144,46 @@ impl Polygons {
                 )
             })
             .collect();
-        let mut flip = vec![None::<bool>; faces.len()];
-        let mut queue = std::collections::VecDeque::new();
-        for start in 0..faces.len() {
-            if flip[start].is_some() {
-                continue;
-            }
-            flip[start] = Some(false);
-            queue.push_back(start);
-            self.starts.push(self.order.len() as u32);
-            self.order.push(start as u32);
-            while let Some(p) = queue.pop_front() {
-                let fp = flip[p] == Some(true);
-                for &e in faces.facets(p) {
-                    let (u, v, same) = links[e as usize];
-                    let q = if u as usize == p { v } else { u };
-                    if q == NONE {
-                        continue;
-                    }
-                    let q = q as usize;
-                    // Opposite walks of the shared edge, after flips: one of the two turns
-                    // when they walk it the same way.
-                    let want = fp != same;
-                    match flip[q] {
-                        None => {
-                            flip[q] = Some(want);
-                            queue.push_back(q);
-                            self.order.push(q as u32);
-                        }
-                        Some(x) if x != want => {
-                            self.orientable = false;
-                            return;
-                        }
-                        _ => {}
-                    }
-                }
+        // Relative flips by a union-find over the polygons: each link joins its two
+        // polygons' classes with the parity it asks for, and a link whose polygons are in one
+        // class already must agree with the parity between them.
+        let mut classes = Parities::new(faces.len());
+        for &(u, v, same) in &links {
+            if v != NONE && !classes.join(u, v, same) {
+                self.orientable = false;
+                return;
             }
         }
-        self.flip = flip.into_iter().map(|x| x == Some(true)).collect();
+        // Each class's root is its lowest polygon (which keeps its walk), and every other
+        // polygon's parent is lower than itself: one pass in order settles the flips, and a
+        // counting pass lists the components, lowest first, each in order.
+        let n = faces.len();
+        let mut flip = vec![false; n];
+        let mut root = vec![0u32; n];
+        let mut size = vec![0u32; n];
+        for p in 0..n {
+            let (up, parity) = classes.link(p);
+            if up == p {
+                root[p] = p as u32;
+            } else {
+                root[p] = root[up];
+                flip[p] = parity != flip[up];
+            }
+            size[root[p] as usize] += 1;
+        }
+        let mut at = vec![0u32; n];
+        for p in 0..n {
+            if root[p] == p as u32 {
+                self.starts.push(self.order.len() as u32);
+                at[p] = self.order.len() as u32;
+                self.order
+                    .resize(self.order.len() + size[p] as usize, u32::MAX);
+            }
+            let slot = &mut at[root[p] as usize];
+            self.order[*slot as usize] = p as u32;
+            *slot += 1;
+        }
+        self.flip = flip;
     }
 
     /// Whether polygon `p` walks from `ab[0]` to `ab[1]`.
@@ -317,6 +319,59 @@ impl Surface {
     }
 }
 
+/// A union-find over polygons that keeps, with each polygon, whether it is flipped relative
+/// to its parent; the root of a class is its lowest polygon.
+struct Parities {
+    parent: Vec<u32>,
+    flipped: Vec<bool>,
+}
+
+impl Parities {
+    fn new(n: usize) -> Self {
+        Parities {
+            parent: (0..n as u32).collect(),
+            flipped: vec![false; n],
+        }
+    }
+
+    /// The root of `x`'s class and whether `x` is flipped relative to it (path halving).
+    fn find(&mut self, mut x: u32) -> (u32, bool) {
+        let mut flipped = false;
+        loop {
+            let p = self.parent[x as usize];
+            if p == x {
+                return (x, flipped);
+            }
+            let g = self.parent[p as usize];
+            let to_g = self.flipped[x as usize] != self.flipped[p as usize];
+            self.parent[x as usize] = g;
+            self.flipped[x as usize] = to_g;
+            flipped ^= to_g;
+            x = g;
+        }
+    }
+
+    /// Makes `u` and `v` flipped relative to each other exactly when `flipped`; false when
+    /// their classes already say otherwise.
+    fn join(&mut self, u: u32, v: u32, flipped: bool) -> bool {
+        let ((ru, fu), (rv, fv)) = (self.find(u), self.find(v));
+        let rel = fu != fv;
+        if ru == rv {
+            return rel == flipped;
+        }
+        let (lo, hi) = if ru < rv { (ru, rv) } else { (rv, ru) };
+        self.parent[hi as usize] = lo;
+        self.flipped[hi as usize] = rel != flipped;
+        true
+    }
+
+    /// Polygon `p`'s parent (lower than `p` unless `p` is a root) and whether `p` is
+    /// flipped relative to it.
+    fn link(&self, p: usize) -> (usize, bool) {
+        (self.parent[p] as usize, self.flipped[p])
+    }
+}
+
 /// Polygon `i` of polygons stored one after another in `vertices`, polygon i ending at
 /// `offsets[i + 1]`.
 fn polygon_in<'a>(offsets: &[u32], vertices: &'a [u32], i: usize) -> &'a [u32] {
@@ -368,7 +423,7 @@ mod tests {
     fn book(pages: usize) -> Complex {
         let edges: [[u32; 2]; 7] = [[0, 1], [0, 2], [1, 2], [0, 3], [1, 3], [0, 4], [1, 4]];
         // The second page walks the spine the other way: were the third page left out of
-        // the spine's polygons, the BFS would find no conflict.
+        // the spine's polygons, the flips would find no conflict.
         let faces: [[u32; 3]; 3] = [[0, 1, 2], [3, 0, 4], [0, 5, 6]];
         let ne = 1 + 2 * pages;
         let lists = |cells: &[u32], n: usize| {
