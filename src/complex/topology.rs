@@ -148,14 +148,8 @@ pub(super) fn analyse(c: &Complex, cancel: &AtomicBool) -> Option<Topology> {
     }
 
     // Components over the edges; those with a boundary vertex are not closed.
-    let mut uf = UnionFind::new(nv);
-    let edges = c.level(1);
-    for i in 0..edges.len() {
-        if let [a, b] = edges.facets(i) {
-            uf.union(*a, *b);
-        }
-    }
-    let roots: Vec<u32> = (0..nv as u32).map(|v| uf.find(v)).collect();
+    let mut forest = Forest::of(c);
+    let roots: Vec<u32> = (0..nv as u32).map(|v| forest.classes.find(v)).collect();
     let components = roots
         .iter()
         .enumerate()
@@ -180,9 +174,9 @@ pub(super) fn analyse(c: &Complex, cancel: &AtomicBool) -> Option<Topology> {
         let b0 = components;
         Some(match m {
             1 => vec![b0, (cells[1] + b0).saturating_sub(nv)],
-            2 => vec![b0, h1_mod2(c, cancel)?, closed_components],
+            2 => vec![b0, h1_mod2(c, &forest, cancel)?, closed_components],
             _ => {
-                let b1 = h1_mod2(c, cancel)?;
+                let b1 = h1_mod2(c, &forest, cancel)?;
                 let b3 = closed_components;
                 let b2 = chi - b0 as i64 + b1 as i64 + b3 as i64;
                 vec![b0, b1, b2.max(0) as usize, b3]
@@ -212,35 +206,59 @@ pub(super) fn analyse(c: &Complex, cancel: &AtomicBool) -> Option<Topology> {
     })
 }
 
-/// dim H_1(M-hat; Z/2), from the 2-skeleton: the edges off a spanning forest generate, the
-/// 2-cells relate. Relations with one or two live generators kill or identify them (this
-/// collapses most of the complex); the rest are reduced by sparse elimination. `None` once
-/// `cancel` is set.
-fn h1_mod2(c: &Complex, cancel: &AtomicBool) -> Option<usize> {
-    h1_mod2_counted(c, cancel).map(|(b1, _)| b1)
+/// A spanning forest of the complex's edges, taken in order: the components of the vertices,
+/// and the edges off the forest (each closes a cycle), numbered in order.
+struct Forest {
+    /// The vertices' components.
+    classes: UnionFind,
+    /// Per edge, its number among the edges off the forest, or [`Forest::TREE`].
+    generator: Vec<u32>,
+    /// How many edges are off the forest.
+    generators: u32,
+}
+
+impl Forest {
+    /// The number of an edge of the forest.
+    const TREE: u32 = u32::MAX;
+
+    fn of(c: &Complex) -> Self {
+        let edges = c.level(1);
+        let mut classes = UnionFind::new(c.vertex_count());
+        let mut generator = vec![Self::TREE; edges.len()];
+        let mut g = 0u32;
+        for (i, gen) in generator.iter_mut().enumerate() {
+            if let [a, b] = edges.facets(i) {
+                if !classes.union(*a, *b) {
+                    *gen = g;
+                    g += 1;
+                }
+            }
+        }
+        Forest {
+            classes,
+            generator,
+            generators: g,
+        }
+    }
+}
+
+/// dim H_1(M-hat; Z/2), from the 2-skeleton: the edges off a spanning forest (`forest`, of
+/// `c`) generate, the 2-cells relate. Relations with one or two live generators kill or
+/// identify them (this collapses most of the complex); the rest are reduced by sparse
+/// elimination. `None` once `cancel` is set.
+fn h1_mod2(c: &Complex, forest: &Forest, cancel: &AtomicBool) -> Option<usize> {
+    h1_mod2_counted(c, forest, cancel).map(|(b1, _)| b1)
 }
 
 /// [`h1_mod2`], and how many faces the collapse left to the elimination.
-fn h1_mod2_counted(c: &Complex, cancel: &AtomicBool) -> Option<(usize, usize)> {
+fn h1_mod2_counted(c: &Complex, forest: &Forest, cancel: &AtomicBool) -> Option<(usize, usize)> {
     let mut seen = 0usize;
     let mut cancelled = || {
         seen += 1;
         seen % CANCEL_EVERY == 0 && cancel.load(Ordering::Relaxed)
     };
-    let nv = c.vertex_count();
-    let edges = c.level(1);
-    let mut forest = UnionFind::new(nv);
-    const TREE: u32 = u32::MAX;
-    let mut generator = vec![TREE; edges.len()];
-    let mut g = 0u32;
-    for (i, gen) in generator.iter_mut().enumerate() {
-        if let [a, b] = edges.facets(i) {
-            if !forest.union(*a, *b) {
-                *gen = g;
-                g += 1;
-            }
-        }
-    }
+    const TREE: u32 = Forest::TREE;
+    let (generator, g) = (&forest.generator, forest.generators);
     let zero = g;
     let mut classes = UnionFind::new(g as usize + 1);
     let faces = c.level(2);
@@ -770,11 +788,13 @@ mod tests {
         // 9 squares finish (and the flag's absence stops nothing).
         let big = big_torus(70, false);
         assert!(big.level(2).len() > CANCEL_EVERY);
-        assert_eq!(h1_mod2(&big, &AtomicBool::new(true)), None);
-        assert_eq!(h1_mod2(&big, &AtomicBool::new(false)), Some(2));
+        let forest = Forest::of(&big);
+        assert_eq!(h1_mod2(&big, &forest, &AtomicBool::new(true)), None);
+        assert_eq!(h1_mod2(&big, &forest, &AtomicBool::new(false)), Some(2));
         assert_eq!(topo(&big).betti_mod2, Some(vec![1, 2, 1]));
         let small = grid(&[3, 3], &[true, true], false);
-        assert_eq!(h1_mod2(&small, &AtomicBool::new(true)), Some(2));
+        let forest = Forest::of(&small);
+        assert_eq!(h1_mod2(&small, &forest, &AtomicBool::new(true)), Some(2));
     }
 
     #[test]
@@ -783,7 +803,8 @@ mod tests {
         // On a torus the collapse does all the work: no face is left to eliminate.
         // Faces in the reverse order need several passes.
         for big in [big, big_torus(70, true)] {
-            let (b1, left) = h1_mod2_counted(&big, &AtomicBool::new(false)).unwrap();
+            let forest = Forest::of(&big);
+            let (b1, left) = h1_mod2_counted(&big, &forest, &AtomicBool::new(false)).unwrap();
             assert_eq!(b1, 2);
             assert_eq!(left, 0, "{left} of 4,900 faces left to the elimination");
         }
