@@ -93,13 +93,15 @@ impl Polygons {
 
     /// Finds the flips that make neighbours agree, component by component; clears
     /// `orientable` (and keeps no flip) on a conflict. The polygons at each edge and
-    /// whether they walk it the same way are found in parallel first; the BFS then reads
-    /// one entry per edge.
+    /// whether they walk it the same way are found in parallel first; a union-find then
+    /// reads one entry per edge.
     fn orient(&mut self, c: &Complex) {
         let edges = c.level(1);
         let faces = c.level(2);
         const NONE: u32 = u32::MAX;
-        // The (up to two) polygons at each edge, in any order; a third one at an edge
+        // The (up to two) polygons at each edge, in any order, each as 2 p + 1 where p walks
+        // the edge from its first end to its second, else 2 p (a polygon has 3 vertices or
+        // more and their count fits 32 bits, so 2 p + 1 < NONE); a third one at an edge
         // ends the orientation.
         let at: Vec<[AtomicU32; 2]> = (0..edges.len())
             .into_par_iter()
@@ -111,9 +113,11 @@ impl Polygons {
             .with_min_len(1 << 12)
             .for_each(|p| {
                 for &e in faces.facets(p) {
+                    let ab = <[u32; 2]>::try_from(edges.facets(e as usize)).expect("2 ends");
+                    let walk = 2 * p as u32 + u32::from(self.walks(p, ab));
                     let [a, b] = &at[e as usize];
                     let put = |s: &AtomicU32| {
-                        s.compare_exchange(NONE, p as u32, Ordering::Relaxed, Ordering::Relaxed)
+                        s.compare_exchange(NONE, walk, Ordering::Relaxed, Ordering::Relaxed)
                             .is_ok()
                     };
                     if !put(a) && !put(b) {
@@ -125,23 +129,16 @@ impl Polygons {
             self.orientable = false;
             return;
         }
-        // Per edge: its polygons (the lower first, as a walk over the polygons in order
-        // would list them) and whether they walk it the same way.
+        // Per edge: its polygons (the lower first) and whether they walk it the same way.
         let links: Vec<(u32, u32, bool)> = at
             .into_par_iter()
-            .enumerate()
-            .map(|(e, [a, b])| {
+            .map(|[a, b]| {
                 let (a, b) = (a.into_inner(), b.into_inner());
                 let (u, v) = if b != NONE && b < a { (b, a) } else { (a, b) };
                 if v == NONE {
-                    return (u, v, false);
+                    return (u / 2, NONE, false);
                 }
-                let ab = <[u32; 2]>::try_from(edges.facets(e)).expect("2 ends");
-                (
-                    u,
-                    v,
-                    self.walks(u as usize, ab) == self.walks(v as usize, ab),
-                )
+                (u / 2, v / 2, u % 2 == v % 2)
             })
             .collect();
         // Relative flips by a union-find over the polygons: each link joins its two
