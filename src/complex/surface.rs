@@ -168,15 +168,16 @@ impl Polygons {
             }
             size[root[p] as usize] += 1;
         }
-        let mut at = vec![0u32; n];
+        // Where each component's next polygon goes in `order`, at its root.
+        let mut next = vec![0u32; n];
         for p in 0..n {
             if root[p] == p as u32 {
                 self.starts.push(self.order.len() as u32);
-                at[p] = self.order.len() as u32;
+                next[p] = self.order.len() as u32;
                 self.order
                     .resize(self.order.len() + size[p] as usize, u32::MAX);
             }
-            let slot = &mut at[root[p] as usize];
+            let slot = &mut next[root[p] as usize];
             self.order[*slot as usize] = p as u32;
             *slot += 1;
         }
