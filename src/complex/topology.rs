@@ -147,44 +147,51 @@ pub(super) fn analyse(c: &Complex, cancel: &AtomicBool) -> Option<Topology> {
         return None;
     }
 
-    // Components over the edges; those with a boundary vertex are not closed.
-    let mut forest = Forest::of(c);
-    let roots: Vec<u32> = (0..nv as u32).map(|v| forest.classes.find(v)).collect();
-    let components = roots
-        .iter()
-        .enumerate()
-        .filter(|(v, &r)| r == *v as u32)
-        .count();
-    let mut open = vec![false; nv];
-    for &r in &roots[c.interior_vertex_count()..] {
-        open[r as usize] = true;
-    }
-    let closed_components = roots
-        .iter()
-        .enumerate()
-        .filter(|(v, &r)| r == *v as u32 && !open[r as usize])
-        .count();
-
-    if cancelled() {
-        return None;
-    }
-    let orientable = (m == 2).then(|| c.polygons().orientable);
+    // The polygons' orientation (m = 2) does not depend on the components and H_1: the two
+    // run side by side.
     let chi = euler(&cells);
-    let betti_mod2 = if manifold && m <= 3 {
-        let b0 = components;
-        Some(match m {
-            1 => vec![b0, (cells[1] + b0).saturating_sub(nv)],
-            2 => vec![b0, h1_mod2(c, &forest, cancel)?, closed_components],
-            _ => {
-                let b1 = h1_mod2(c, &forest, cancel)?;
-                let b3 = closed_components;
-                let b2 = chi - b0 as i64 + b1 as i64 + b3 as i64;
-                vec![b0, b1, b2.max(0) as usize, b3]
+    let (orientable, rest) = rayon::join(
+        || (m == 2).then(|| c.polygons().orientable),
+        || {
+            // Components over the edges; those with a boundary vertex are not closed.
+            let mut forest = Forest::of(c);
+            let roots: Vec<u32> = (0..nv as u32).map(|v| forest.classes.find(v)).collect();
+            let components = roots
+                .iter()
+                .enumerate()
+                .filter(|(v, &r)| r == *v as u32)
+                .count();
+            let mut open = vec![false; nv];
+            for &r in &roots[c.interior_vertex_count()..] {
+                open[r as usize] = true;
             }
-        })
-    } else {
-        None
-    };
+            let closed_components = roots
+                .iter()
+                .enumerate()
+                .filter(|(v, &r)| r == *v as u32 && !open[r as usize])
+                .count();
+            if cancelled() {
+                return None;
+            }
+            let betti_mod2 = if manifold && m <= 3 {
+                let b0 = components;
+                Some(match m {
+                    1 => vec![b0, (cells[1] + b0).saturating_sub(nv)],
+                    2 => vec![b0, h1_mod2(c, &forest, cancel)?, closed_components],
+                    _ => {
+                        let b1 = h1_mod2(c, &forest, cancel)?;
+                        let b3 = closed_components;
+                        let b2 = chi - b0 as i64 + b1 as i64 + b3 as i64;
+                        vec![b0, b1, b2.max(0) as usize, b3]
+                    }
+                })
+            } else {
+                None
+            };
+            Some((components, closed_components, betti_mod2))
+        },
+    );
+    let (components, closed_components, betti_mod2) = rest?;
     if cancelled() {
         return None;
     }
