@@ -52,13 +52,8 @@ fn rank(a: &wgpu::Adapter) -> (u8, u8, u8) {
 }
 
 /// The adapters that run compute shaders and pass `keep`, best first, from the first
-/// backend tier that has any.
-fn compute_adapters(keep: impl Fn(&wgpu::Adapter) -> bool + Sync) -> Vec<wgpu::Adapter> {
-    on_own_thread(|| probe(&keep))
-}
-
-/// [`compute_adapters`] on the calling thread.
-fn probe(keep: &(impl Fn(&wgpu::Adapter) -> bool + Sync)) -> Vec<wgpu::Adapter> {
+/// backend tier that has any. Callers run it through [`on_own_thread`].
+fn compute_adapters(keep: impl Fn(&wgpu::Adapter) -> bool) -> Vec<wgpu::Adapter> {
     for backends in tiers() {
         let mut desc = wgpu::InstanceDescriptor::new_without_display_handle();
         desc.backends = backends;
@@ -111,7 +106,7 @@ fn on_own_thread<T: Send>(f: impl FnOnce() -> T + Send) -> T {
 /// Every adapter that runs compute shaders, best first. GL adapters are probed only when no
 /// Vulkan, Metal or Dx12 adapter runs compute, or when `WGPU_BACKEND` asks for GL.
 pub fn adapters() -> Vec<AdapterSummary> {
-    compute_adapters(|_| true)
+    on_own_thread(|| compute_adapters(|_| true))
         .iter()
         .map(AdapterSummary::of)
         .collect()
@@ -159,7 +154,7 @@ impl Gpu {
 
     /// [`Gpu::open_new`] on the calling thread.
     fn open_here(allow_software: bool) -> Result<Self> {
-        let adapter = probe(&|a: &wgpu::Adapter| {
+        let adapter = compute_adapters(|a| {
             allow_software || a.get_info().device_type != wgpu::DeviceType::Cpu
         })
         .into_iter()
