@@ -547,7 +547,8 @@ impl<'a, const W: usize> Engine<'a, W> {
     pub fn accept(&mut self, found: Found<W>) -> Result<Frontier> {
         let (d, n) = (self.ctx.d, self.ctx.k + 1);
         let start = self.s.len();
-        let (mut rows, mut back) = (Vec::new(), Back::default());
+        let mut rows = Vec::with_capacity(found.rows.len());
+        let mut back = Back::with_capacity(found.keys.len(), found.back.vertex_count());
         // No point computed: the domain is everything.
         let outside: Vec<bool> = if found.points.is_empty() {
             Vec::new()

@@ -37,6 +37,19 @@ pub(crate) struct Back {
 }
 
 impl Back {
+    /// Room for `lists` lists of `vertices` vertices in all.
+    pub(super) fn with_capacity(lists: usize, vertices: usize) -> Self {
+        Back {
+            end: Vec::with_capacity(lists),
+            vertices: Vec::with_capacity(vertices),
+        }
+    }
+
+    /// The number of vertices in all lists.
+    pub(super) fn vertex_count(&self) -> usize {
+        self.vertices.len()
+    }
+
     /// The list of simplex i.
     pub(super) fn of(&self, i: usize) -> &[u32] {
         if self.end.is_empty() {
@@ -115,16 +128,17 @@ impl Members {
 
 /// Runs `f` on consecutive ranges covering `0..len`, about four per thread and at least
 /// `min_chunk` items each, in parallel when there is more than one; returns the results
-/// in order.
+/// in order. On one thread, one range.
 pub(crate) fn par_ranges<T: Send>(
     len: usize,
     min_chunk: usize,
     f: impl Fn(Range<usize>) -> T + Sync,
 ) -> Vec<T> {
-    let chunk = len
-        .div_ceil(4 * rayon::current_num_threads())
-        .max(min_chunk)
-        .max(1);
+    let threads = rayon::current_num_threads();
+    if threads == 1 {
+        return vec![f(0..len)];
+    }
+    let chunk = len.div_ceil(4 * threads).max(min_chunk).max(1);
     let parts = len.div_ceil(chunk);
     if parts <= 1 {
         return vec![f(0..len)];

@@ -64,6 +64,14 @@ struct Named<const W: usize> {
 }
 
 impl<const W: usize> Named<W> {
+    /// Whether it holds no candidate, deferred cofacet or pivot state.
+    fn is_empty(&self) -> bool {
+        self.cands.is_empty()
+            && self.deferred.is_empty()
+            && self.pivots.is_empty()
+            && self.loaded.is_empty()
+    }
+
     /// Room for `cands` candidates and `deferred` cofacets (and as many pivot states of
     /// `state` numbers): sized up front, because growing vectors on several threads at once
     /// contends for the allocator.
@@ -78,9 +86,16 @@ impl<const W: usize> Named<W> {
         }
     }
 
-    /// Appends the parts in order, growing each vector once.
+    /// Appends the parts in order, growing each vector once (into an empty one, the first
+    /// part is moved, not copied).
     fn extend(&mut self, parts: Vec<Result<Named<W>>>) -> Result<()> {
-        let parts = parts.into_iter().collect::<Result<Vec<_>>>()?;
+        let mut parts = parts.into_iter().collect::<Result<Vec<_>>>()?;
+        if self.is_empty() && !parts.is_empty() {
+            let (fallbacks, non_finite) = (self.fallbacks, self.non_finite);
+            *self = parts.remove(0);
+            self.fallbacks += fallbacks;
+            self.non_finite += non_finite;
+        }
         self.cands
             .reserve(parts.iter().map(|p| p.cands.len()).sum());
         self.deferred
@@ -704,7 +719,7 @@ impl<const W: usize> Engine<'_, W> {
             keys: firsts.iter().map(|c| c.key).collect(),
             rows: cand_rows,
             verdicts,
-            back: backs(cands, rows, n),
+            back: backs(cands, rows, n, firsts.len()),
         })
     }
 
@@ -712,21 +727,19 @@ impl<const W: usize> Engine<'_, W> {
     fn found<const R: usize>(&self, rounds: [Decided<W>; R], with_points: bool) -> Found<W> {
         let (d, n) = (self.ctx.d, self.ctx.k + 1);
         type Hit<'r, const W: usize> = (Key<W>, &'r [u32], &'r [f64], &'r [u32]);
-        let mut hits: Vec<Hit<W>> = rounds
-            .iter()
-            .flat_map(|r| {
-                (0..r.keys.len())
-                    .filter(|&i| r.verdicts.status[i].crossed())
-                    .map(move |i| {
-                        (
-                            r.keys[i],
-                            &r.rows[i * n..(i + 1) * n],
-                            &r.verdicts.lambda[i * n..(i + 1) * n],
-                            r.back.of(i),
-                        )
-                    })
-            })
-            .collect();
+        let mut hits: Vec<Hit<W>> = Vec::with_capacity(rounds.iter().map(|r| r.keys.len()).sum());
+        hits.extend(rounds.iter().flat_map(|r| {
+            (0..r.keys.len())
+                .filter(|&i| r.verdicts.status[i].crossed())
+                .map(move |i| {
+                    (
+                        r.keys[i],
+                        &r.rows[i * n..(i + 1) * n],
+                        &r.verdicts.lambda[i * n..(i + 1) * n],
+                        r.back.of(i),
+                    )
+                })
+        }));
         // One round's keys are in order already.
         if R > 1 {
             hits.sort_unstable_by_key(|h| h.0);
@@ -740,7 +753,7 @@ impl<const W: usize> Engine<'_, W> {
             }
             out
         });
-        let mut back = Back::default();
+        let mut back = Back::with_capacity(hits.len(), hits.iter().map(|h| h.3.len()).sum());
         for h in &hits {
             back.push_list(h.3);
         }
@@ -789,8 +802,8 @@ fn cand_rows<const W: usize>(cands: &[&Candidate<W>], rows: &[u32], n: usize) ->
 /// Each distinct key's way back, from the sorted candidates `cands`: the vertices of their
 /// cofacets tau that they lack (tau's other crossed facet, if it is crossed, is the
 /// frontier simplex).
-fn backs<const W: usize>(cands: &[Candidate<W>], rows: &[u32], n: usize) -> Back {
-    let mut back = Back::default();
+fn backs<const W: usize>(cands: &[Candidate<W>], rows: &[u32], n: usize, keys: usize) -> Back {
+    let mut back = Back::with_capacity(keys, cands.len());
     for (i, c) in cands.iter().enumerate() {
         if i > 0 && cands[i - 1].key != c.key {
             back.end_list();
@@ -841,7 +854,7 @@ impl<const W: usize> Taken<W> {
     /// The decisions in key order, with the ways back of the sorted candidates `cands`
     /// (whose distinct keys are exactly these).
     fn in_key_order(self, cands: &[Candidate<W>], rows: &[u32], n: usize) -> Decided<W> {
-        let back = backs(cands, rows, n);
+        let back = backs(cands, rows, n, self.keys.len());
         if self.starts.len() <= 1 {
             return Decided {
                 keys: self.keys,
