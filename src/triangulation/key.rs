@@ -1,6 +1,8 @@
 //! Compact keys: a canonical simplex packed into a few 64-bit words (the set of such keys is
 //! [`KeySet`](super::KeySet)).
 
+use std::ops::{BitOr, Shl, Shr};
+
 use super::simplex::{check_dim, Simplex, MAX_DIM};
 use crate::error::{Error, Result};
 
@@ -195,9 +197,9 @@ impl KeyCodec {
         }
     }
 
-    // Keys of a width known at compile time (the tracing loop's): those of one or two words
-    // are packed and unpacked in one 128-bit integer, bit for bit the layout above; wider
-    // ones take the general path.
+    // Keys of a width known at compile time (the tracing loop's): those of one word are
+    // packed and unpacked in a u64, those of two in a u128, bit for bit the layout above;
+    // wider ones take the general path.
 
     /// [`KeyCodec::encode`] into a key of `W` words (`W` = [`KeyCodec::words`]).
     #[inline]
@@ -222,18 +224,29 @@ impl KeyCodec {
             return self.encode_masks(v0, parts, out);
         }
         debug_assert_eq!((parts.len(), self.words), (self.l + 1, W));
-        let mut acc = self.pack_vertex(v0)?;
+        *out = if W == 1 {
+            split_words(u128::from(self.pack_masks::<u64>(v0, parts)?))
+        } else {
+            split_words(self.pack_masks::<u128>(v0, parts)?)
+        };
+        Ok(())
+    }
+
+    /// A key of at most two words packed in `A`: the base vertex `v0`, then the part index
+    /// of each element but d of the partition `parts`.
+    #[inline]
+    fn pack_masks<A: Packed>(&self, v0: &[i32], parts: &[u64]) -> Result<A> {
+        let mut acc = self.pack_vertex::<A>(v0)?;
         let base = self.d as u32 * self.coord_bits;
         let below_d = (1u64 << self.d) - 1;
         for (p, &mask) in parts.iter().enumerate().skip(1) {
             let mut m = mask & below_d;
             while m != 0 {
-                acc |= (p as u128) << (base + m.trailing_zeros() * self.part_bits);
+                acc = acc | A::from(p as u64) << (base + m.trailing_zeros() * self.part_bits);
                 m &= m - 1;
             }
         }
-        *out = split_words(acc);
-        Ok(())
+        Ok(acc)
     }
 
     /// [`KeyCodec::encode_vertex`] into a key of `W` words (`W` = [`KeyCodec::words`]).
@@ -247,7 +260,11 @@ impl KeyCodec {
             return self.encode_vertex(v, out);
         }
         debug_assert_eq!(self.words, W);
-        *out = split_words(self.pack_vertex(v)?);
+        *out = if W == 1 {
+            split_words(u128::from(self.pack_vertex::<u64>(v)?))
+        } else {
+            split_words(self.pack_vertex::<u128>(v)?)
+        };
         Ok(())
     }
 
@@ -258,7 +275,16 @@ impl KeyCodec {
             return self.decode_into(key, out);
         }
         debug_assert_eq!(self.words, W);
-        let acc = join_words(key);
+        if W == 1 {
+            self.unpack_simplex(key[0], out);
+        } else {
+            self.unpack_simplex(join_words(key), out);
+        }
+    }
+
+    /// [`KeyCodec::decode_into`] of a key of at most two words packed in `acc`.
+    #[inline]
+    fn unpack_simplex<A: Packed>(&self, acc: A, out: &mut Simplex) {
         let (bits, pbits) = (self.coord_bits, self.part_bits);
         let (v0, parts) = out.reset(self.d, self.l + 1);
         unpack_vertex(acc, bits, v0);
@@ -270,7 +296,7 @@ impl KeyCodec {
         }
         let (base, low) = (self.d as u32 * bits, (1u64 << pbits) - 1);
         for e in 0..self.d {
-            let p = ((acc >> (base + e as u32 * pbits)) as u64 & low) as usize;
+            let p = ((acc >> (base + e as u32 * pbits)).low() & low) as usize;
             parts[p] |= 1 << e;
         }
     }
@@ -282,21 +308,27 @@ impl KeyCodec {
             return self.decode_vertex(key, out);
         }
         debug_assert_eq!(self.words, W);
-        unpack_vertex(join_words(key), self.coord_bits, &mut out[..self.d]);
+        let out = &mut out[..self.d];
+        if W == 1 {
+            unpack_vertex(key[0], self.coord_bits, out);
+        } else {
+            unpack_vertex(join_words(key), self.coord_bits, out);
+        }
     }
 
-    /// The base-vertex field of a key of at most 128 bits, or the overflow error.
+    /// The base-vertex field of a key of at most two words, packed in `A`, or the overflow
+    /// error.
     #[inline]
-    fn pack_vertex(&self, v: &[i32]) -> Result<u128> {
+    fn pack_vertex<A: Packed>(&self, v: &[i32]) -> Result<A> {
         let bits = self.coord_bits;
         let bias = 1i64 << (bits - 1);
         let low = (1u64 << bits) - 1;
         // One test for all coordinates, as in `encode_vertex`.
-        let (mut acc, mut spill, mut pos) = (0u128, 0u64, 0u32);
+        let (mut acc, mut spill, mut pos) = (A::default(), 0u64, 0u32);
         for &c in &v[..self.d] {
             let x = (c as i64 + bias) as u64;
             spill |= x >> bits;
-            acc |= u128::from(x & low) << pos;
+            acc = acc | A::from(x & low) << pos;
             pos += bits;
         }
         if spill != 0 {
@@ -342,11 +374,39 @@ fn join_words<const W: usize>(key: &[u64; W]) -> u128 {
 
 /// The base coordinates (`out.len()` of them, `bits` each, biased) of a packed key.
 #[inline]
-fn unpack_vertex(acc: u128, bits: u32, out: &mut [i32]) {
+fn unpack_vertex<A: Packed>(acc: A, bits: u32, out: &mut [i32]) {
     let bias = 1i64 << (bits - 1);
     let low = (1u64 << bits) - 1;
     for (i, c) in out.iter_mut().enumerate() {
-        *c = (((acc >> (i as u32 * bits)) as u64 & low) as i64 - bias) as i32;
+        *c = (((acc >> (i as u32 * bits)).low() & low) as i64 - bias) as i32;
+    }
+}
+
+/// The integer a key of at most two words is packed in: `u64` for one word, whose shifts
+/// are single instructions, `u128` for two. Shifts stay below the key's bits.
+trait Packed:
+    Copy
+    + Default
+    + From<u64>
+    + BitOr<Output = Self>
+    + Shl<u32, Output = Self>
+    + Shr<u32, Output = Self>
+{
+    /// The low 64 bits.
+    fn low(self) -> u64;
+}
+
+impl Packed for u64 {
+    #[inline]
+    fn low(self) -> u64 {
+        self
+    }
+}
+
+impl Packed for u128 {
+    #[inline]
+    fn low(self) -> u64 {
+        self as u64
     }
 }
 
