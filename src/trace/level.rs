@@ -19,7 +19,7 @@ use super::table::Key;
 use crate::cpu::pivot::Pivot;
 use crate::cpu::solve::Status;
 use crate::error::Result;
-use crate::triangulation::{Simplex, MAX_DIM};
+use crate::triangulation::{shift_by_mask, Simplex, MAX_DIM};
 
 /// Fewest frontier simplices per parallel work item.
 const SIGMA_CHUNK: usize = 24;
@@ -158,6 +158,8 @@ struct Work<'e, 'a, const W: usize> {
     facet: Simplex,
     key: Key<W>,
     v: [i32; MAX_DIM],
+    /// The vertices of the frontier simplex being read, d each.
+    corners: Vec<i32>,
     /// Lattice coordinates of the new vertices of the cofacets to skip, d each.
     skip: Vec<i32>,
     out: Named<W>,
@@ -185,20 +187,24 @@ impl<'e, 'a, const W: usize> Namer<'e, 'a, W> {
                 facet: blank,
                 key: [0; W],
                 v: [0; MAX_DIM],
+                corners: vec![0; (engine.ctx.k + 1) * engine.ctx.d],
                 skip: Vec::with_capacity(4 * engine.ctx.d),
                 out: Named::with_capacity(cands, deferred, state),
             },
         }
     }
 
-    /// Loads frontier simplex `i` and its cofacets to skip; false when its L is
-    /// numerically singular.
+    /// Loads frontier simplex `i`, its vertices and its cofacets to skip; false when its L
+    /// is numerically singular.
     fn load(&mut self, i: usize) -> bool {
         let e = self.work.engine;
         let (d, k) = (e.ctx.d, e.ctx.k);
         e.ctx
             .codec
             .decode_into_w(e.s.key(self.frontier.members.get(i)), &mut self.sigma);
+        let corners = &mut self.work.corners;
+        self.sigma
+            .for_each_vertex(|j, v| corners[j * d..(j + 1) * d].copy_from_slice(v));
         let back = self.frontier.back.of(i);
         self.work.skip.resize(back.len() * d, 0);
         for (&b, v) in back.iter().zip(self.work.skip.chunks_exact_mut(d)) {
@@ -217,12 +223,13 @@ impl<'e, 'a, const W: usize> Namer<'e, 'a, W> {
         let mut via = 0u32;
         let mut err = Ok(());
         let mut stop = false;
-        self.sigma.for_each_cofacet_split(|tau, p, split| {
+        let (sigma, tau, work) = (&self.sigma, &mut self.tau, &mut self.work);
+        sigma.for_each_split(|part, subset| {
             // In high dimensions one simplex has millions of cofacets: a stop asked for
             // meanwhile leaves them unnamed (the caller drops the slice).
-            stop = stop || (via % 4096 == 4095 && self.work.engine.ctx.interrupted());
+            stop = stop || (via % 4096 == 4095 && work.engine.ctx.interrupted());
             if err.is_ok() && !stop {
-                err = self.work.cofacet(tau, p, i as u32, via, Err(split), ok);
+                err = work.split(sigma, tau, i as u32, via, (part, subset), ok);
             }
             via += 1;
         });
@@ -257,63 +264,79 @@ impl<'e, 'a, const W: usize> Namer<'e, 'a, W> {
                 .sigma
                 .cofacet_into(t.part as usize, t.subset, &mut self.tau);
             self.work
-                .cofacet(&self.tau, p, i as u32, t.via, Ok(*apex), ok)?;
+                .cofacet(&self.tau, p, i as u32, t.via, *apex, ok)?;
         }
         Ok(())
     }
 }
 
 impl<const W: usize> Work<'_, '_, W> {
-    /// Cofacet `tau` (new vertex at `p`; its cache index, or the split that makes tau when
-    /// the index is not looked up yet) of frontier simplex `from`, whose pivot is loaded
-    /// (`ok`).
+    /// The cofacet of the loaded frontier simplex `sigma` (number `via` of simplex `from`,
+    /// whose pivot is loaded when `ok`) that splits its part `split.0` into `split.1` and the
+    /// rest. Its new vertex, sigma's vertex `split.0` moved by the subset, is found first:
+    /// a cofacet to skip, or whose new vertex is not cached yet (deferred), is never built.
+    fn split(
+        &mut self,
+        sigma: &Simplex,
+        tau: &mut Simplex,
+        from: u32,
+        via: u32,
+        (part, subset): (usize, u64),
+        ok: bool,
+    ) -> Result<()> {
+        let e = self.engine;
+        let d = e.ctx.d;
+        let v = &mut self.v[..d];
+        v.copy_from_slice(&self.corners[part * d..(part + 1) * d]);
+        shift_by_mask(v, subset, d);
+        if self
+            .skip
+            .chunks_exact(d)
+            .any(|b| b.iter().zip(&*v).all(|(x, y)| x == y))
+        {
+            return Ok(());
+        }
+        e.ctx.codec.encode_vertex_w(v, &mut self.key)?;
+        // In a breadth-first run only the last levels' vertices are looked up here; the
+        // others are deferred and looked up in the whole cache once each.
+        let cached = match &self.recent {
+            Some(recent) => recent.get(&self.key),
+            None => e.verts.find(&self.key).map(|a| a as u32),
+        };
+        #[cfg(test)]
+        let cached = cached.filter(|_| self.recent.is_none() || !e.ctx.forget_vertices);
+        let Some(apex) = cached else {
+            self.out.deferred.push(Deferred {
+                from,
+                via,
+                part: part as u32,
+                subset,
+                vertex: self.key,
+            });
+            return Ok(());
+        };
+        let p = sigma.cofacet_into(part, subset, tau);
+        debug_assert!({
+            let mut at = [0; MAX_DIM];
+            tau.vertex_into(p, &mut at[..d]);
+            at[..d] == self.v[..d]
+        });
+        self.cofacet(tau, p, from, via, apex, ok)
+    }
+
+    /// Cofacet `tau` (new vertex at `p`, cache index `apex`) of frontier simplex `from`,
+    /// whose pivot is loaded (`ok`): names its exit.
     fn cofacet(
         &mut self,
         tau: &Simplex,
         p: usize,
         from: u32,
         via: u32,
-        apex: std::result::Result<u32, (usize, u64)>,
+        apex: u32,
         ok: bool,
     ) -> Result<()> {
         let e = self.engine;
-        let (d, k) = (e.ctx.d, e.ctx.k);
-        let apex = match apex {
-            Ok(a) => a,
-            Err((part, subset)) => {
-                tau.vertex_into(p, &mut self.v[..d]);
-                let v = &self.v[..d];
-                if self
-                    .skip
-                    .chunks_exact(d)
-                    .any(|b| b.iter().zip(v).all(|(x, y)| x == y))
-                {
-                    return Ok(());
-                }
-                e.ctx.codec.encode_vertex_w(&self.v[..d], &mut self.key)?;
-                // In a breadth-first run only the last levels' vertices are looked up here;
-                // the others are deferred and looked up in the whole cache once each.
-                let cached = match &self.recent {
-                    Some(recent) => recent.get(&self.key),
-                    None => e.verts.find(&self.key).map(|a| a as u32),
-                };
-                #[cfg(test)]
-                let cached = cached.filter(|_| self.recent.is_none() || !e.ctx.forget_vertices);
-                match cached {
-                    Some(a) => a,
-                    None => {
-                        self.out.deferred.push(Deferred {
-                            from,
-                            via,
-                            part: part as u32,
-                            subset,
-                            vertex: self.key,
-                        });
-                        return Ok(());
-                    }
-                }
-            }
-        };
+        let k = e.ctx.k;
         let fw = &e.values[apex as usize * k..(apex as usize + 1) * k];
         if fw.iter().any(|v| !v.is_finite()) {
             // Every facet of tau but the frontier simplex has a non-finite vertex value.

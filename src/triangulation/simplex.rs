@@ -415,12 +415,22 @@ impl Simplex {
     /// Like [`Simplex::for_each_cofacet_apex`], with the split `(i, s)` that makes each
     /// cofacet (part i split into s and the rest), for [`Simplex::cofacet_into`].
     pub(crate) fn for_each_cofacet_split(&self, mut f: impl FnMut(&Simplex, usize, (usize, u64))) {
-        let d = self.d as usize;
+        let mut out = Self::blank(self.d as usize, 0); // scratch: cofacet_into sets its length
+        self.for_each_split(|i, s| {
+            let p = self.cofacet_into(i, s, &mut out);
+            f(&out, p, (i, s));
+        });
+    }
+
+    /// Calls `f(i, s)` for the split of every cofacet, in the order of
+    /// [`Simplex::for_each_cofacet_split`], without building the cofacets: part i split
+    /// into s (a non-empty proper subset of it, listed from the largest down) and the rest.
+    /// The cofacet's new vertex is vertex i moved by s.
+    pub(crate) fn for_each_split(&self, mut f: impl FnMut(usize, u64)) {
         let n = self.n_parts as usize;
-        if n == d + 1 {
+        if n == self.d as usize + 1 {
             return;
         }
-        let mut out = Self::blank(d, 0); // scratch: cofacet_into sets its length
         for i in 0..n {
             let m = self.parts[i];
             if m.count_ones() < 2 {
@@ -428,8 +438,7 @@ impl Simplex {
             }
             let mut s = (m - 1) & m;
             while s != 0 {
-                let p = self.cofacet_into(i, s, &mut out);
-                f(&out, p, (i, s));
+                f(i, s);
                 s = (s - 1) & m;
             }
         }
