@@ -44,8 +44,9 @@ impl Pivot {
         (scale, a, inv, w)
     }
 
-    /// The loaded simplex's state (its row scales and L^-1: k + (k + 1)^2 numbers), for
-    /// [`Pivot::restore`] to put back without inverting L again.
+    /// The loaded simplex's state (its row scales and L^-1: k + (k + 1)^2 numbers; for
+    /// k = 1, the two values first), for [`Pivot::restore`] to put back without inverting
+    /// L again.
     pub fn state(&self) -> &[f64] {
         &self.buf[..self.n - 1 + self.n * self.n]
     }
@@ -56,9 +57,15 @@ impl Pivot {
     }
 
     /// Inverts L for the simplex with vertex values `F_j[c] = val(j, c)`; false when L is
-    /// numerically singular (no ratio test then).
+    /// numerically singular (no ratio test then). For k = 1 it keeps the two values
+    /// instead (see [`Pivot::exit`]): false when they are equal or not finite.
     pub fn load(&mut self, val: impl Fn(usize, usize) -> f64) -> bool {
         let n = self.n;
+        if n == 2 {
+            let (a, b) = (val(0, 0), val(1, 0));
+            self.buf[..2].copy_from_slice(&[a, b]);
+            return a.is_finite() && b.is_finite() && a != b;
+        }
         let k = n - 1;
         let (scale, a, inv, _) = self.parts();
         scaled_row_factors(k, &val, scale);
@@ -73,7 +80,20 @@ impl Pivot {
 
     /// The vertex of the loaded simplex that leaves when a vertex with values `f` (k
     /// entries) enters, or `None` when no entry of L^-1 a is positive (rounding trouble).
+    ///
+    /// For k = 1 the ratio test is a test of signs, exact: for a crossed edge with values
+    /// a and b at its vertices, the vertex whose value has the sign of f (zero counting as
+    /// negative, as the test's tie rule does) leaves. With a < 0 < b, L^-1 a is
+    /// (b - f, f - a) / (b - a) and the ratios' first entries compare as f does with 0; at
+    /// f = 0 the second entries, -1 against 1, put vertex 0 first. The other orders of a,
+    /// b and f reduce to these.
     pub fn exit(&mut self, f: &[f64]) -> Option<usize> {
+        if self.n == 2 {
+            let f = f[0];
+            return f
+                .is_finite()
+                .then(|| usize::from((self.buf[0] > 0.0) != (f > 0.0)));
+        }
         super::unrolled!(self.n, |n| self.exit_steps(n, f))
     }
 
@@ -186,6 +206,39 @@ mod tests {
         let (confirmed, wrong) = pivot_outcomes(0.3, 600);
         assert!(confirmed > 900, "only {confirmed} pivots");
         assert!(wrong * 50 < confirmed, "{wrong} wrong of {confirmed}");
+    }
+
+    #[test]
+    fn for_edges_the_exit_is_the_exact_tests_other_crossed_facet() {
+        // Every triangle with values in -2..=2 at its vertices (zeros and ties included)
+        // and some with tiny ones: the exit that k = 1 finds by signs is the other crossed
+        // edge that the exact test finds, without exception.
+        let mut values: Vec<f64> = (-2..=2).map(f64::from).collect();
+        values.extend([1e-300, -1e-300, 3e-17, -0.75]);
+        let mut lambda = [0.0; 2];
+        let (mut pivots, mut p) = (0, Pivot::new(1));
+        for &x in &values {
+            for &y in &values {
+                for &z in &values {
+                    let tau = [x, y, z];
+                    let facet = |skip: usize| -> Vec<f64> {
+                        (0..3).filter(|&j| j != skip).map(|j| tau[j]).collect()
+                    };
+                    let crossed: Vec<usize> = (0..3)
+                        .filter(|&s| exact_decision(&facet(s), 1, &mut lambda) == Status::Crossed)
+                        .collect();
+                    for (&out, &other) in crossed.iter().zip(crossed.iter().rev()) {
+                        let sigma = facet(out);
+                        assert!(p.load(|j, _| sigma[j]), "{tau:?}");
+                        let r = p.exit(&[tau[out]]).expect("an exit");
+                        let leaves = if r < out { r } else { r + 1 };
+                        assert_eq!(leaves, other, "tau {tau:?}, vertex {out} enters");
+                        pivots += 1;
+                    }
+                }
+            }
+        }
+        assert!(pivots > 200, "{pivots} pivots");
     }
 
     #[test]
