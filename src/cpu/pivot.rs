@@ -87,6 +87,7 @@ impl Pivot {
     /// (b - f, f - a) / (b - a) and the ratios' first entries compare as f does with 0; at
     /// f = 0 the second entries, -1 against 1, put vertex 0 first. The other orders of a,
     /// b and f reduce to these.
+    #[inline]
     pub fn exit(&mut self, f: &[f64]) -> Option<usize> {
         if self.n == 2 {
             let f = f[0];
@@ -94,6 +95,12 @@ impl Pivot {
                 .is_finite()
                 .then(|| usize::from((self.buf[0] > 0.0) != (f > 0.0)));
         }
+        self.ratio_test(f)
+    }
+
+    /// [`Pivot::exit`] for k > 1: the ratio test in f64.
+    #[inline(never)]
+    fn ratio_test(&mut self, f: &[f64]) -> Option<usize> {
         super::unrolled!(self.n, |n| self.exit_steps(n, f))
     }
 

@@ -19,7 +19,7 @@ use super::table::Key;
 use crate::cpu::pivot::Pivot;
 use crate::cpu::solve::Status;
 use crate::error::Result;
-use crate::triangulation::{shift_by_mask, Simplex, MAX_DIM};
+use crate::triangulation::{copy_run, shift_by_mask, Simplex, MAX_DIM};
 
 /// Fewest frontier simplices per parallel work item.
 const SIGMA_CHUNK: usize = 24;
@@ -187,7 +187,8 @@ impl<'e, 'a, const W: usize> Namer<'e, 'a, W> {
                 facet: blank,
                 key: [0; W],
                 v: [0; MAX_DIM],
-                corners: vec![0; (engine.ctx.k + 1) * engine.ctx.d],
+                // Padded, for `copy_run`'s fixed blocks.
+                corners: vec![0; (engine.ctx.k + 1) * engine.ctx.d + 8],
                 skip: Vec::with_capacity(4 * engine.ctx.d),
                 out: Named::with_capacity(cands, deferred, state),
             },
@@ -286,8 +287,8 @@ impl<const W: usize> Work<'_, '_, W> {
     ) -> Result<()> {
         let e = self.engine;
         let d = e.ctx.d;
+        copy_run(&mut self.v, 0, &self.corners, part * d, d);
         let v = &mut self.v[..d];
-        v.copy_from_slice(&self.corners[part * d..(part + 1) * d]);
         shift_by_mask(v, subset, d);
         if self
             .skip

@@ -101,11 +101,10 @@ impl KeyCodec {
     pub fn decode_into(&self, key: &[u64], out: &mut Simplex) {
         let bias = 1i64 << (self.coord_bits - 1);
         let mut r = BitReader { words: key, pos: 0 };
-        let (v0, parts) = out.reset(self.d, self.l + 1);
+        let (v0, parts) = out.reset_clear(self.d, self.l + 1);
         for c in v0.iter_mut() {
             *c = (r.get(self.coord_bits) as i64 - bias) as i32;
         }
-        parts.fill(0);
         parts[self.l] |= 1 << self.d;
         for e in 0..self.d {
             let p = if self.part_bits > 0 {
@@ -286,9 +285,8 @@ impl KeyCodec {
     #[inline]
     fn unpack_simplex<A: Packed>(&self, acc: A, out: &mut Simplex) {
         let (bits, pbits) = (self.coord_bits, self.part_bits);
-        let (v0, parts) = out.reset(self.d, self.l + 1);
+        let (v0, parts) = out.reset_clear(self.d, self.l + 1);
         unpack_vertex(acc, bits, v0);
-        parts.fill(0);
         parts[self.l] |= 1 << self.d;
         if pbits == 0 {
             parts[0] |= (1 << self.d) - 1;

@@ -73,7 +73,7 @@ pub(crate) fn shift_by_mask(v: &mut [i32], mask: u64, d: usize) {
 /// it, so overwriting them is harmless when runs are written in ascending order), which
 /// compiles to a few moves instead of a call to memmove.
 #[inline(always)]
-fn copy_run<T: Copy>(dst: &mut [T], at: usize, src: &[T], from: usize, len: usize) {
+pub(crate) fn copy_run<T: Copy>(dst: &mut [T], at: usize, src: &[T], from: usize, len: usize) {
     const BLOCK: usize = 8;
     if len <= BLOCK && at + BLOCK <= dst.len() && from + BLOCK <= src.len() {
         dst[at..at + BLOCK].copy_from_slice(&src[from..from + BLOCK]);
@@ -107,6 +107,19 @@ impl Simplex {
         self.d = d as u8;
         self.n_parts = n_parts as u8;
         (&mut self.v0[..d], &mut self.parts[..n_parts])
+    }
+
+    /// [`Simplex::reset`] with the parts cleared (a fixed block of 8 where they fit, which
+    /// compiles to a few stores instead of a call to memset).
+    #[inline]
+    pub(crate) fn reset_clear(&mut self, d: usize, n_parts: usize) -> (&mut [i32], &mut [u64]) {
+        const BLOCK: usize = 8;
+        if n_parts <= BLOCK {
+            self.parts[..BLOCK].fill(0);
+        } else {
+            self.parts[..n_parts].fill(0);
+        }
+        self.reset(d, n_parts)
     }
 
     /// The vertex `v` as a 0-simplex.
