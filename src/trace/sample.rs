@@ -111,12 +111,31 @@ impl Sample {
 
     /// Point `i` into `out` (d coordinates).
     fn point_into(&self, i: usize, w: &mut PointWork, out: &mut [f64]) {
+        // Keys of one or two words, as wide as the vertex set's, take the codec's
+        // fixed-width paths.
+        match (self.codec.words(), self.vertices.words()) {
+            (1, 1) => self.point_into_w::<1>(i, w, out),
+            (2, 2) => self.point_into_w::<2>(i, w, out),
+            _ => self.point_into_w::<0>(i, w, out),
+        }
+    }
+
+    /// [`Sample::point_into`] for keys of `W` words (0: any width, the general paths).
+    #[inline(always)]
+    fn point_into_w<const W: usize>(&self, i: usize, w: &mut PointWork, out: &mut [f64]) {
         let k = self.codim();
-        self.codec.decode_into(self.key(i), &mut w.simplex);
+        match <&[u64; W]>::try_from(self.key(i)) {
+            Ok(key) if W > 0 => self.codec.decode_into_w(key, &mut w.simplex),
+            _ => self.codec.decode_into(self.key(i), &mut w.simplex),
+        }
         let s = &w.simplex;
         let mut found = true;
         s.for_each_vertex(|j, v| {
-            let at = match self.codec.encode_vertex(v, &mut w.vkey) {
+            let encoded = match <&mut [u64; W]>::try_from(&mut w.vkey[..]) {
+                Ok(vkey) if W > 0 => self.codec.encode_vertex_w(v, vkey),
+                _ => self.codec.encode_vertex(v, &mut w.vkey),
+            };
+            let at = match encoded {
                 Ok(()) => self.vertices.find(&w.vkey),
                 Err(_) => None,
             };
