@@ -19,7 +19,7 @@ use super::table::Key;
 use crate::cpu::pivot::Pivot;
 use crate::cpu::solve::Status;
 use crate::error::Result;
-use crate::triangulation::{copy_run, shift_by_mask, Simplex, MAX_DIM};
+use crate::triangulation::{copy_run, shift_by_mask, Simplex, MAX_DIM, RUN_BLOCK};
 
 /// Fewest frontier simplices per parallel work item.
 const SIGMA_CHUNK: usize = 24;
@@ -188,7 +188,7 @@ impl<'e, 'a, const W: usize> Namer<'e, 'a, W> {
                 key: [0; W],
                 v: [0; MAX_DIM],
                 // Padded, for `copy_run`'s fixed blocks.
-                corners: vec![0; (engine.ctx.k + 1) * engine.ctx.d + 8],
+                corners: vec![0; (engine.ctx.k + 1) * engine.ctx.d + RUN_BLOCK],
                 skip: Vec::with_capacity(4 * engine.ctx.d),
                 out: Named::with_capacity(cands, deferred, state),
             },

@@ -15,5 +15,5 @@ pub use geometry::{
 pub use key::KeyCodec;
 pub use key_set::{KeySet, Width, Words};
 pub(crate) use simplex::check_dim;
-pub(crate) use simplex::{copy_run, shift_by_mask};
+pub(crate) use simplex::{copy_run, shift_by_mask, RUN_BLOCK};
 pub use simplex::{Simplex, MAX_DIM};

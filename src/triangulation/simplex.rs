@@ -68,15 +68,17 @@ pub(crate) fn shift_by_mask(v: &mut [i32], mask: u64, d: usize) {
     }
 }
 
+/// The fixed block that short runs of a simplex's arrays are copied or cleared as.
+pub(crate) const RUN_BLOCK: usize = 8;
+
 /// `dst[at..at + len] = src[from..from + len]`, for the short runs of a simplex's arrays:
-/// a fixed block of 8 when it fits both (entries past a simplex's length are not part of
+/// a fixed block of [`RUN_BLOCK`] when it fits both (entries past a simplex's length are not part of
 /// it, so overwriting them is harmless when runs are written in ascending order), which
 /// compiles to a few moves instead of a call to memmove.
 #[inline(always)]
 pub(crate) fn copy_run<T: Copy>(dst: &mut [T], at: usize, src: &[T], from: usize, len: usize) {
-    const BLOCK: usize = 8;
-    if len <= BLOCK && at + BLOCK <= dst.len() && from + BLOCK <= src.len() {
-        dst[at..at + BLOCK].copy_from_slice(&src[from..from + BLOCK]);
+    if len <= RUN_BLOCK && at + RUN_BLOCK <= dst.len() && from + RUN_BLOCK <= src.len() {
+        dst[at..at + RUN_BLOCK].copy_from_slice(&src[from..from + RUN_BLOCK]);
     } else {
         dst[at..at + len].copy_from_slice(&src[from..from + len]);
     }
@@ -109,13 +111,12 @@ impl Simplex {
         (&mut self.v0[..d], &mut self.parts[..n_parts])
     }
 
-    /// [`Simplex::reset`] with the parts cleared (a fixed block of 8 where they fit, which
-    /// compiles to a few stores instead of a call to memset).
+    /// [`Simplex::reset`] with the parts cleared (a fixed block of [`RUN_BLOCK`] where they
+    /// fit, which compiles to a few stores instead of a call to memset).
     #[inline]
     pub(crate) fn reset_clear(&mut self, d: usize, n_parts: usize) -> (&mut [i32], &mut [u64]) {
-        const BLOCK: usize = 8;
-        if n_parts <= BLOCK {
-            self.parts[..BLOCK].fill(0);
+        if n_parts <= RUN_BLOCK {
+            self.parts[..RUN_BLOCK].fill(0);
         } else {
             self.parts[..n_parts].fill(0);
         }
