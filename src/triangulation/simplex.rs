@@ -72,9 +72,9 @@ pub(crate) fn shift_by_mask(v: &mut [i32], mask: u64, d: usize) {
 pub(crate) const RUN_BLOCK: usize = 8;
 
 /// `dst[at..at + len] = src[from..from + len]`, for the short runs of a simplex's arrays:
-/// a fixed block of [`RUN_BLOCK`] when it fits both (entries past a simplex's length are not part of
-/// it, so overwriting them is harmless when runs are written in ascending order), which
-/// compiles to a few moves instead of a call to memmove.
+/// a fixed block of [`RUN_BLOCK`] when it fits both (entries past a simplex's length are not
+/// part of it, so overwriting them is harmless when runs are written in ascending order),
+/// which compiles to a few moves instead of a call to memmove.
 #[inline(always)]
 pub(crate) fn copy_run<T: Copy>(dst: &mut [T], at: usize, src: &[T], from: usize, len: usize) {
     if len <= RUN_BLOCK && at + RUN_BLOCK <= dst.len() && from + RUN_BLOCK <= src.len() {
