@@ -5,12 +5,15 @@
 use std::collections::VecDeque;
 use std::ops::Range;
 
+use std::hash::BuildHasher;
+
 use foldhash::fast::FixedState;
-use hashbrown::HashSet;
+use hashbrown::HashTable;
 use rayon::prelude::*;
 
-use super::frontier::{sort, Back, Found, Frontier, Members, Verdicts};
+use super::frontier::{Back, Found, Frontier, Members, Verdicts};
 use super::recent::Replicas;
+use super::sorting::sort;
 use super::table::{Key, Table};
 use super::{
     Decisions, GrowingValues, Progress, StopReason, TraceContext, TraceStats, DEFAULT_EXTENT_STEPS,
@@ -53,9 +56,7 @@ pub(crate) struct Engine<'a, const W: usize> {
 /// The keys of the last two levels of a breadth-first run, and the vertices cached in its
 /// last few levels.
 pub(crate) struct Levels<const W: usize> {
-    pub keys: HashSet<Key<W>, FixedState>,
-    /// The last level, a range of S.
-    last: Range<usize>,
+    pub keys: LevelKeys<W>,
     /// The vertices cached in the last [`recent_levels`] levels, a table per thread.
     /// Naming looks a cofacet's new vertex up there and defers it when it is not found (the
     /// deferred vertices are then looked up in the whole cache, once each).
@@ -63,6 +64,80 @@ pub(crate) struct Levels<const W: usize> {
     /// Where each of those levels' vertices start in the cache, oldest first, then the
     /// cache's length when they were last brought up to date.
     starts: VecDeque<usize>,
+}
+
+/// The keys of S's last two levels: per level, hash tables split by hash bits, the older
+/// level's refilled with each new level (so that a level's keys are inserted once), by
+/// several threads (one table each) when the level is large.
+pub(crate) struct LevelKeys<const W: usize> {
+    /// Level l's tables are `tables[l * LEVEL_SHARDS..(l + 1) * LEVEL_SHARDS]`.
+    tables: Vec<HashTable<Key<W>>>,
+    /// The newest level.
+    newest: usize,
+    hasher: FixedState,
+}
+
+/// Tables per level (a power of two).
+const LEVEL_SHARDS: usize = 8;
+/// Fewest keys a level indexes on several threads.
+const PAR_LEVEL: usize = 4096;
+
+/// The table of a key with hash `h`: bits the hash tables use for neither the bucket (low
+/// bits) nor the control byte (the top seven).
+#[inline]
+fn level_shard(h: u64) -> usize {
+    (h >> 48) as usize & (LEVEL_SHARDS - 1)
+}
+
+impl<const W: usize> LevelKeys<W> {
+    fn new() -> Self {
+        LevelKeys {
+            tables: (0..2 * LEVEL_SHARDS).map(|_| HashTable::new()).collect(),
+            newest: 0,
+            hasher: FixedState::default(),
+        }
+    }
+
+    /// Makes the simplices `level` of S the newest level; the oldest one is forgotten.
+    fn push_level(&mut self, s: &Table<W>, level: Range<usize>) {
+        self.newest = 1 - self.newest;
+        let hasher = &self.hasher;
+        let rehash = |k: &Key<W>| hasher.hash_one(k);
+        let tables = &mut self.tables[self.newest * LEVEL_SHARDS..][..LEVEL_SHARDS];
+        if level.len() < PAR_LEVEL || rayon::current_num_threads() == 1 {
+            tables.iter_mut().for_each(HashTable::clear);
+            for i in level {
+                let (key, h) = (s.key(i), hasher.hash_one(s.key(i)));
+                tables[level_shard(h)].insert_unique(h, *key, rehash);
+            }
+            return;
+        }
+        let hashes: Vec<u64> = level
+            .clone()
+            .into_par_iter()
+            .with_min_len(1024)
+            .map(|i| hasher.hash_one(s.key(i)))
+            .collect();
+        tables.par_iter_mut().enumerate().for_each(|(t, table)| {
+            table.clear();
+            table.reserve(hashes.len() / LEVEL_SHARDS, rehash);
+            for (i, &h) in level.clone().zip(&hashes) {
+                if level_shard(h) == t {
+                    table.insert_unique(h, *s.key(i), rehash);
+                }
+            }
+        });
+    }
+
+    /// Whether either level holds `key`.
+    #[inline]
+    pub fn contains(&self, key: &Key<W>) -> bool {
+        let h = self.hasher.hash_one(key);
+        let t = level_shard(h);
+        [t, LEVEL_SHARDS + t]
+            .iter()
+            .any(|&t| self.tables[t].find(h, |k| k == key).is_some())
+    }
 }
 
 /// Most vertices of the last levels that naming looks up in [`Levels::vertices`] (a table
@@ -80,11 +155,10 @@ pub(crate) fn recent_levels(k: usize) -> usize {
 impl<const W: usize> Levels<W> {
     /// Levels starting at the simplices `last` of S, with `cached` vertices in the cache.
     fn new(s: &Table<W>, last: Range<usize>, cached: usize) -> Self {
-        let mut keys = HashSet::with_hasher(FixedState::default());
-        keys.extend(last.clone().map(|i| *s.key(i)));
+        let mut keys = LevelKeys::new();
+        keys.push_level(s, last.clone());
         Levels {
             keys,
-            last,
             vertices: Replicas::new(),
             starts: VecDeque::from([cached]),
         }
@@ -94,9 +168,7 @@ impl<const W: usize> Levels<W> {
     /// and the vertices cached since the last call are the newest of the last `window`
     /// levels' (the tables of [`Levels::vertices`] take them up when next used).
     fn advance(&mut self, s: &Table<W>, next: Range<usize>, verts: &Table<W>, window: usize) {
-        let last = std::mem::replace(&mut self.last, next.clone());
-        self.keys.clear();
-        self.keys.extend(last.chain(next).map(|i| *s.key(i)));
+        self.keys.push_level(s, next);
         self.starts.push_back(verts.len());
         while self.starts.len() > window + 1 {
             self.starts.pop_front();
@@ -590,5 +662,42 @@ impl<'a, const W: usize> Engine<'a, W> {
             rows,
             back,
         })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_level_keys_hold_the_last_two_levels_at_every_thread_count() {
+        // Levels of 5,000 keys (indexed on several threads) and of 10 (on one).
+        let sizes = [5000, 10, 5000, 5000, 10, 10, 5000];
+        let mut s = Table::<2>::fixed();
+        let keys: Vec<u64> = (0..sizes.iter().sum::<usize>() as u64)
+            .flat_map(|i| [i.wrapping_mul(0x9e37_79b9_7f4a_7c15), i])
+            .collect();
+        s.push_unindexed(&keys).unwrap();
+        for threads in [1, 2, 3, 8] {
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap();
+            pool.install(|| {
+                let mut levels = LevelKeys::new();
+                let mut start = 0;
+                let mut last = 0..0;
+                for &size in &sizes {
+                    let level = start..start + size;
+                    levels.push_level(&s, level.clone());
+                    for i in 0..s.len() {
+                        let held = level.contains(&i) || last.contains(&i);
+                        assert_eq!(levels.contains(s.key(i)), held, "{threads} threads");
+                    }
+                    assert!(!levels.contains(&[1, u64::MAX]));
+                    (start, last) = (level.end, level);
+                }
+            });
+        }
     }
 }

@@ -8,9 +8,6 @@ use rayon::prelude::*;
 use super::table::Key;
 use crate::cpu::solve::Status;
 
-/// Below this length a sort runs on the calling thread.
-const PAR_SORT_MIN: usize = 1 << 14;
-
 /// Oracle verdicts on a batch of candidates.
 pub(crate) struct Verdicts {
     pub status: Vec<Status>,
@@ -147,22 +144,4 @@ pub(crate) fn par_ranges<T: Send>(
         .into_par_iter()
         .map(|c| f(c * chunk..((c + 1) * chunk).min(len)))
         .collect()
-}
-
-/// Sorts, in parallel when it pays.
-pub(crate) fn sort<T: Ord + Send>(v: &mut [T]) {
-    if v.len() < PAR_SORT_MIN {
-        v.sort_unstable();
-    } else {
-        v.par_sort_unstable();
-    }
-}
-
-/// Sorts a concatenation of sorted runs (merging them), in parallel when it pays.
-pub(crate) fn sort_runs<T: Ord + Send>(v: &mut [T]) {
-    if v.len() < PAR_SORT_MIN {
-        v.sort();
-    } else {
-        v.par_sort();
-    }
 }

@@ -13,8 +13,9 @@ use std::sync::MutexGuard;
 use rayon::prelude::*;
 
 use super::engine::Engine;
-use super::frontier::{par_ranges, sort, sort_runs, Back, Found, Frontier, Verdicts};
+use super::frontier::{par_ranges, Back, Found, Frontier, Verdicts};
 use super::recent::RecentVertices;
+use super::sorting::{sort, sort_runs};
 use super::table::Key;
 use crate::cpu::pivot::Pivot;
 use crate::cpu::solve::Status;
