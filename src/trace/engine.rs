@@ -614,13 +614,23 @@ impl<'a, const W: usize> Engine<'a, W> {
         (crossed, points)
     }
 
+    /// Appends a level's new simplices `keys` to S.
+    fn push_level_keys(&mut self, keys: &[Key<W>]) -> Result<()> {
+        if self.levels.is_some() {
+            // A breadth-first run looks its levels up in `levels`: S's table waits until
+            // a lookup needs it ([`Engine::s_holds`]).
+            self.s.push_unindexed(keys.as_flattened())?;
+        } else {
+            self.s.insert_new_batch(keys.as_flattened())?;
+        }
+        Ok(())
+    }
+
     /// Puts what a level found into S where its point lies in the domain (in key order),
     /// into the rim otherwise; returns the new simplices of S as the next frontier.
     pub fn accept(&mut self, found: Found<W>) -> Result<Frontier> {
         let (d, n) = (self.ctx.d, self.ctx.k + 1);
         let start = self.s.len();
-        let mut rows = Vec::with_capacity(found.rows.len());
-        let mut back = Back::with_capacity(found.keys.len(), found.back.vertex_count());
         // No point computed: the domain is everything.
         let outside: Vec<bool> = if found.points.is_empty() {
             Vec::new()
@@ -632,6 +642,17 @@ impl<'a, const W: usize> Engine<'a, W> {
                 .map(|p| !self.ctx.domain.contains(p))
                 .collect()
         };
+        if !outside.contains(&true) {
+            // All inside: the level's vectors move on as they are.
+            self.push_level_keys(&found.keys)?;
+            return Ok(Frontier {
+                members: Members::Range(start..self.s.len()),
+                rows: found.rows,
+                back: found.back,
+            });
+        }
+        let mut rows = Vec::with_capacity(found.rows.len());
+        let mut back = Back::with_capacity(found.keys.len(), found.back.vertex_count());
         let mut inside = Vec::with_capacity(found.keys.len());
         // A level's keys are distinct and in neither S nor the rim (see `step`).
         for (i, (key, row)) in found
@@ -650,13 +671,7 @@ impl<'a, const W: usize> Engine<'a, W> {
                 back.push_from(&found.back, i);
             }
         }
-        if self.levels.is_some() {
-            // A breadth-first run looks its levels up in `levels`: S's table waits until
-            // a lookup needs it ([`Engine::s_holds`]).
-            self.s.push_unindexed(inside.as_flattened())?;
-        } else {
-            self.s.insert_new_batch(inside.as_flattened())?;
-        }
+        self.push_level_keys(&inside)?;
         Ok(Frontier {
             members: Members::Range(start..self.s.len()),
             rows,

@@ -72,6 +72,21 @@ impl Back {
         self.end.push(self.vertices.len() as u32);
     }
 
+    /// The lists of `parts`, one part after another.
+    pub(super) fn concat(parts: impl Iterator<Item = Back>) -> Back {
+        let mut out = Back::default();
+        for p in parts {
+            if out.end.is_empty() {
+                out = p;
+                continue;
+            }
+            let base = out.vertices.len() as u32;
+            out.end.extend(p.end.iter().map(|e| e + base));
+            out.vertices.extend_from_slice(&p.vertices);
+        }
+        out
+    }
+
     /// Keeps simplex i's list (call in order).
     pub fn push_from(&mut self, other: &Back, i: usize) {
         self.vertices.extend_from_slice(other.of(i));

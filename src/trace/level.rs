@@ -33,6 +33,8 @@ const POINT_CHUNK: usize = 128;
 const VERTEX_PIECE: usize = 1 << 18;
 /// Fewest deferred vertices per parallel work item (lookups in the whole cache).
 const VERTEX_LOOKUPS: usize = 1024;
+/// Fewest sorted candidates per parallel work item (their distinct keys).
+const DISTINCT_CHUNK: usize = 512;
 
 /// A k-simplex to test: the facet of cofacet tau number `via` of frontier simplex `from`
 /// that lacks tau's vertex `drop`. Tau's new vertex sits at `apex_at` and has cache index
@@ -387,22 +389,24 @@ impl<const W: usize> Engine<'_, W> {
             return Ok(Some(self.found([], with_points)));
         }
         let rows = &frontier.rows[..];
-        let Some((named, first)) = self.first_round(frontier)? else {
+        let Some((named, first, starts)) = self.first_round(frontier)? else {
             return Ok(None);
         };
 
         // Round 2: every facet of the cofacets whose named facet the oracle rejected.
         // `first` holds the distinct keys of the sorted `named`, in order: key j of `first`
-        // is the j-th run of equal keys there.
+        // is the run of equal keys at `starts[j]` there.
         let mut retry: Vec<(u32, u32, u32)> = Vec::new();
-        let mut j = 0;
-        for (i, c) in named.iter().enumerate() {
-            if i > 0 && named[i - 1].key != c.key {
-                j += 1;
+        for (j, status) in first.verdicts.status.iter().enumerate() {
+            if status.crossed() {
+                continue;
             }
-            debug_assert!(first.keys[j] == c.key);
-            if !c.fallback && !first.verdicts.status[j].crossed() {
-                retry.push((c.from, c.via, c.apex));
+            let end = starts.get(j + 1).map_or(named.len(), |&e| e as usize);
+            for c in &named[starts[j] as usize..end] {
+                debug_assert!(first.keys[j] == c.key);
+                if !c.fallback {
+                    retry.push((c.from, c.via, c.apex));
+                }
             }
         }
         retry.sort_unstable();
@@ -455,7 +459,8 @@ impl<const W: usize> Engine<'_, W> {
 
     /// Round 1 of a level: the pivot names one facet per cofacet of every frontier simplex,
     /// and the oracle decides the named facets, each key once. Returns the named candidates,
-    /// sorted, and the decisions in key order; `None` when the trace must stop.
+    /// sorted, the decisions in key order and where each key's candidates start; `None`
+    /// when the trace must stop.
     ///
     /// With an oracle that decides off the CPU ([`Decide::level_slice`]), a large frontier
     /// goes in slices: slice c + 1 is named while slice c is decided, and a key named in
@@ -467,7 +472,7 @@ impl<const W: usize> Engine<'_, W> {
     fn first_round(
         &mut self,
         frontier: &Frontier,
-    ) -> Result<Option<(Vec<Candidate<W>>, Decided<W>)>> {
+    ) -> Result<Option<(Vec<Candidate<W>>, Decided<W>, Vec<u32>)>> {
         let len = frontier.members.len();
         let (d, n) = (self.ctx.d, self.ctx.k + 1);
         let per_cand = size_of::<Candidate<W>>() + n * 12 + d * 8 + 16;
@@ -501,6 +506,8 @@ impl<const W: usize> Engine<'_, W> {
         let sliced = slices.len() > 1;
         let mut held = 0;
         let mut named_all = Vec::new();
+        // Unsliced: where each distinct key's candidates start, and their ways back.
+        let mut whole: Option<(Vec<u32>, Back)> = None;
         let mut taken = Taken::default();
         if self.must_stop(naming(slices[0].len())) {
             return Ok(None);
@@ -527,11 +534,16 @@ impl<const W: usize> Engine<'_, W> {
             self.stats.non_finite += named.non_finite;
             let mut cands = named.cands;
             sort_runs(&mut cands);
-            let new: Vec<&Candidate<W>> = firsts(&cands)
-                .filter(|c| !sliced || !taken.has(&c.key))
-                .collect();
-            let rows = cand_rows(&new, &frontier.rows, n);
-            let keys: Vec<Key<W>> = new.iter().map(|c| c.key).collect();
+            let (keys, rows) = if sliced {
+                let new: Vec<&Candidate<W>> =
+                    firsts(&cands).filter(|c| !taken.has(&c.key)).collect();
+                let rows = cand_rows(&new, &frontier.rows, n);
+                (new.iter().map(|c| c.key).collect(), rows)
+            } else {
+                let d = distinct(&cands, &frontier.rows, n);
+                whole = Some((d.starts, d.back));
+                (d.keys, d.rows)
+            };
             if let Some(r) = slices.get(c + 1) {
                 let now = held + (rows.len() + keys.len()) * 8 * W;
                 if self.must_stop_growing(now + naming(r.len()), 2 * len) {
@@ -556,9 +568,14 @@ impl<const W: usize> Engine<'_, W> {
             // Stable: merges the slices' sorted runs.
             named_all.sort();
         }
-        let first = taken.in_key_order(&named_all, &frontier.rows, n);
-        debug_assert!(first.keys.len() == firsts(&named_all).count());
-        Ok(Some((named_all, first)))
+        let (starts, back) = whole.unwrap_or_else(|| {
+            let starts = firsts_at(&named_all);
+            let back = backs(&named_all, &frontier.rows, n, starts.len());
+            (starts, back)
+        });
+        let first = taken.in_key_order(back, n);
+        debug_assert!(first.keys.len() == starts.len());
+        Ok(Some((named_all, first, starts)))
     }
 
     /// Round 1's naming for the frontier simplices `slice`: the exit of every cofacet whose
@@ -748,9 +765,41 @@ impl<const W: usize> Engine<'_, W> {
         })
     }
 
+    /// The crossing points of the simplices `keys`, whose barycentric coordinates are
+    /// `lambda` (k + 1 each), d each.
+    fn points_of(&self, keys: &[Key<W>], lambda: &[f64]) -> Vec<f64> {
+        let (d, n) = (self.ctx.d, self.ctx.k + 1);
+        let parts = par_ranges(keys.len(), POINT_CHUNK, |r| {
+            let mut out = vec![0.0; r.len() * d];
+            let mut s = self.ctx.codec.scratch();
+            for (o, i) in out.chunks_exact_mut(d).zip(r) {
+                self.point(&keys[i], &lambda[i * n..(i + 1) * n], &mut s, o);
+            }
+            out
+        });
+        parts.concat()
+    }
+
     /// The crossed simplices of the rounds, sorted by key, with their points if asked for.
     fn found<const R: usize>(&self, rounds: [Decided<W>; R], with_points: bool) -> Found<W> {
         let (d, n) = (self.ctx.d, self.ctx.k + 1);
+        if R == 1 && rounds[0].verdicts.status.iter().all(|s| s.crossed()) {
+            {
+                // Every key crossed (the pivot named them all right): moved, not copied.
+                let one = rounds.into_iter().next().expect("one round");
+                let points = if with_points {
+                    self.points_of(&one.keys, &one.verdicts.lambda)
+                } else {
+                    Vec::new()
+                };
+                return Found {
+                    keys: one.keys,
+                    rows: one.rows,
+                    points,
+                    back: one.back,
+                };
+            }
+        }
         type Hit<'r, const W: usize> = (Key<W>, &'r [u32], &'r [f64], &'r [u32]);
         let mut hits: Vec<Hit<W>> = Vec::with_capacity(rounds.iter().map(|r| r.keys.len()).sum());
         hits.extend(rounds.iter().flat_map(|r| {
@@ -788,6 +837,79 @@ impl<const W: usize> Engine<'_, W> {
             points: parts.concat(),
             back,
         }
+    }
+}
+
+/// Where each key's run starts in the sorted `cands`.
+fn firsts_at<const W: usize>(cands: &[Candidate<W>]) -> Vec<u32> {
+    (0..cands.len())
+        .filter(|&i| i == 0 || cands[i - 1].key != cands[i].key)
+        .map(|i| i as u32)
+        .collect()
+}
+
+/// The distinct keys of sorted candidates, with the vertex-cache rows of each key's first
+/// candidate, where its candidates start and its way back.
+struct Distinct<const W: usize> {
+    keys: Vec<Key<W>>,
+    rows: Vec<u32>,
+    starts: Vec<u32>,
+    back: Back,
+}
+
+/// [`Distinct`] of the sorted `cands` (`rows` holds the frontier's), on several threads:
+/// each takes a range of the candidates that splits no key's run.
+fn distinct<const W: usize>(cands: &[Candidate<W>], rows: &[u32], n: usize) -> Distinct<W> {
+    let one = |r: Range<usize>| {
+        let mut out = Distinct {
+            keys: Vec::with_capacity(r.len()),
+            rows: Vec::with_capacity(r.len() * n),
+            starts: Vec::with_capacity(r.len()),
+            back: Back::with_capacity(r.len(), r.len()),
+        };
+        for i in r.clone() {
+            let c = &cands[i];
+            if i == r.start || cands[i - 1].key != c.key {
+                if i > r.start {
+                    out.back.end_list();
+                }
+                out.keys.push(c.key);
+                out.starts.push(i as u32);
+                let kept = (0..=n).filter(|&t| t != c.drop as usize);
+                out.rows.extend(kept.map(|t| tau_vertex(c, rows, n, t)));
+            }
+            out.back
+                .push_vertex(tau_vertex(c, rows, n, c.drop as usize));
+        }
+        if !r.is_empty() {
+            out.back.end_list();
+        }
+        out
+    };
+    let threads = rayon::current_num_threads();
+    let chunk = cands.len().div_ceil(4 * threads).max(DISTINCT_CHUNK);
+    if threads == 1 || cands.len() <= chunk {
+        return one(0..cands.len());
+    }
+    let mut ranges = Vec::new();
+    let mut start = 0;
+    while start < cands.len() {
+        let mut end = (start + chunk).min(cands.len());
+        while end < cands.len() && cands[end - 1].key == cands[end].key {
+            end += 1;
+        }
+        ranges.push(start..end);
+        start = end;
+    }
+    let parts: Vec<Distinct<W>> = ranges.into_par_iter().map(one).collect();
+    Distinct {
+        keys: parts.iter().flat_map(|p| p.keys.iter().copied()).collect(),
+        rows: parts.iter().flat_map(|p| p.rows.iter().copied()).collect(),
+        starts: parts
+            .iter()
+            .flat_map(|p| p.starts.iter().copied())
+            .collect(),
+        back: Back::concat(parts.into_iter().map(|p| p.back)),
     }
 }
 
@@ -876,10 +998,9 @@ impl<const W: usize> Taken<W> {
         }
     }
 
-    /// The decisions in key order, with the ways back of the sorted candidates `cands`
-    /// (whose distinct keys are exactly these).
-    fn in_key_order(self, cands: &[Candidate<W>], rows: &[u32], n: usize) -> Decided<W> {
-        let back = backs(cands, rows, n, self.keys.len());
+    /// The decisions in key order, with the ways back `back` of their keys in key order
+    /// (`n` vertices to a row).
+    fn in_key_order(self, back: Back, n: usize) -> Decided<W> {
         if self.starts.len() <= 1 {
             return Decided {
                 keys: self.keys,
@@ -911,6 +1032,48 @@ impl<const W: usize> Taken<W> {
                 lambda: gather(&self.lambda, &order, n),
             },
             back,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn distinct_keys_are_the_same_at_every_thread_count() {
+        // Sorted candidates with runs of 1 to 7 equal keys, over a frontier of 50 rows.
+        let n = 3;
+        let rows: Vec<u32> = (0..50 * n as u32).map(|i| i * 7 % 1000).collect();
+        let mut cands: Vec<Candidate<1>> = (0..6000u32)
+            .map(|i| Candidate {
+                key: [u64::from(i / (1 + i % 7))],
+                from: i % 50,
+                via: i % 5,
+                apex: 2000 + i,
+                apex_at: (i % 4) as u8,
+                drop: (i % 3) as u8,
+                fallback: i % 11 == 0,
+            })
+            .collect();
+        cands.sort();
+        let want_firsts: Vec<&Candidate<1>> = firsts(&cands).collect();
+        let want_rows = cand_rows(&want_firsts, &rows, n);
+        let want_back = backs(&cands, &rows, n, want_firsts.len());
+        for threads in [1, 2, 3, 8] {
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap();
+            let got = pool.install(|| distinct(&cands, &rows, n));
+            let keys: Vec<Key<1>> = want_firsts.iter().map(|c| c.key).collect();
+            assert!(got.keys == keys, "{threads} threads");
+            assert!(got.rows == want_rows, "{threads} threads");
+            assert!(got.starts == firsts_at(&cands), "{threads} threads");
+            for j in 0..keys.len() {
+                assert_eq!(got.back.of(j), want_back.of(j), "{threads} threads");
+            }
+            assert_eq!(got.back.vertex_count(), cands.len());
         }
     }
 }
