@@ -94,3 +94,12 @@ pub const MAX_DIM: usize = 63;
 pub struct ReadmeDoctests;
 pub use mesher::{Backend, Manifold, Mesher, WriteOptions};
 pub use report::Report;
+
+/// A rayon pool of `threads` threads, for the tests that compare thread counts.
+#[cfg(test)]
+pub(crate) fn test_pool(threads: usize) -> rayon::ThreadPool {
+    rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()
+        .expect("a test's thread pool")
+}

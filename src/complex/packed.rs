@@ -679,11 +679,7 @@ mod tests {
             let mut got = want.clone();
             got.reverse();
             got.rotate_left(12345);
-            let pool = rayon::ThreadPoolBuilder::new()
-                .num_threads(threads)
-                .build()
-                .unwrap();
-            let got = pool.install(|| par_sort_distinct(got));
+            let got = crate::test_pool(threads).install(|| par_sort_distinct(got));
             assert!(got == want, "{threads} threads");
         }
     }

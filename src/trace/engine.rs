@@ -107,7 +107,8 @@ impl<const W: usize> LevelKeys<W> {
         if level.len() < PAR_LEVEL || rayon::current_num_threads() == 1 {
             tables.iter_mut().for_each(HashTable::clear);
             for i in level {
-                let (key, h) = (s.key(i), hasher.hash_one(s.key(i)));
+                let key = s.key(i);
+                let h = hasher.hash_one(key);
                 tables[level_shard(h)].insert_unique(h, *key, rehash);
             }
             return;
@@ -694,11 +695,7 @@ mod tests {
             .collect();
         s.push_unindexed(&keys).unwrap();
         for threads in [1, 2, 3, 8] {
-            let pool = rayon::ThreadPoolBuilder::new()
-                .num_threads(threads)
-                .build()
-                .unwrap();
-            pool.install(|| {
+            crate::test_pool(threads).install(|| {
                 let mut levels = LevelKeys::new();
                 let mut start = 0;
                 let mut last = 0..0;

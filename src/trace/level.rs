@@ -784,21 +784,19 @@ impl<const W: usize> Engine<'_, W> {
     fn found<const R: usize>(&self, rounds: [Decided<W>; R], with_points: bool) -> Found<W> {
         let (d, n) = (self.ctx.d, self.ctx.k + 1);
         if R == 1 && rounds[0].verdicts.status.iter().all(|s| s.crossed()) {
-            {
-                // Every key crossed (the pivot named them all right): moved, not copied.
-                let one = rounds.into_iter().next().expect("one round");
-                let points = if with_points {
-                    self.points_of(&one.keys, &one.verdicts.lambda)
-                } else {
-                    Vec::new()
-                };
-                return Found {
-                    keys: one.keys,
-                    rows: one.rows,
-                    points,
-                    back: one.back,
-                };
-            }
+            // Every key crossed (the pivot named them all right): moved, not copied.
+            let one = rounds.into_iter().next().expect("one round");
+            let points = if with_points {
+                self.points_of(&one.keys, &one.verdicts.lambda)
+            } else {
+                Vec::new()
+            };
+            return Found {
+                keys: one.keys,
+                rows: one.rows,
+                points,
+                back: one.back,
+            };
         }
         type Hit<'r, const W: usize> = (Key<W>, &'r [u32], &'r [f64], &'r [u32]);
         let mut hits: Vec<Hit<W>> = Vec::with_capacity(rounds.iter().map(|r| r.keys.len()).sum());
@@ -1061,11 +1059,7 @@ mod tests {
         let want_rows = cand_rows(&want_firsts, &rows, n);
         let want_back = backs(&cands, &rows, n, want_firsts.len());
         for threads in [1, 2, 3, 8] {
-            let pool = rayon::ThreadPoolBuilder::new()
-                .num_threads(threads)
-                .build()
-                .unwrap();
-            let got = pool.install(|| distinct(&cands, &rows, n));
+            let got = crate::test_pool(threads).install(|| distinct(&cands, &rows, n));
             let keys: Vec<Key<1>> = want_firsts.iter().map(|c| c.key).collect();
             assert!(got.keys == keys, "{threads} threads");
             assert!(got.rows == want_rows, "{threads} threads");

@@ -94,13 +94,6 @@ fn sort_in_pieces<T: Ord + Copy + Send + Sync>(v: &mut Vec<T>, parts: usize) {
 mod tests {
     use super::*;
 
-    fn pool(threads: usize) -> rayon::ThreadPool {
-        rayon::ThreadPoolBuilder::new()
-            .num_threads(threads)
-            .build()
-            .unwrap()
-    }
-
     /// A deterministic pseudo-random sequence (xorshift).
     fn noise(n: usize, seed: u64, modulo: u64) -> Vec<u64> {
         let mut x = seed;
@@ -117,7 +110,7 @@ mod tests {
     #[test]
     fn the_same_order_as_a_sequential_sort_at_every_thread_count() {
         for threads in [1, 2, 3, 8, 16] {
-            let p = pool(threads);
+            let p = crate::test_pool(threads);
             for (n, modulo) in [
                 (0, 10),
                 (5, 10),
@@ -154,7 +147,7 @@ mod tests {
 
     #[test]
     fn identical_items_and_one_value_throughout() {
-        let p = pool(4);
+        let p = crate::test_pool(4);
         let mut same = vec![(3u64, 1u32); 4000];
         p.install(|| sort(&mut same));
         assert!(same.iter().all(|x| *x == (3, 1)) && same.len() == 4000);

@@ -68,18 +68,11 @@ mod tests {
     use super::*;
     use rayon::prelude::*;
 
-    fn pool(threads: usize) -> rayon::ThreadPool {
-        rayon::ThreadPoolBuilder::new()
-            .num_threads(threads)
-            .build()
-            .unwrap()
-    }
-
     #[test]
     fn parallel_work_inside_gives_the_same_results_and_the_pollers_stop() {
         let want: u64 = (0..100_000u64).map(|i| i * i % 7).sum();
         for threads in [1, 2, 4] {
-            let p = pool(threads);
+            let p = crate::test_pool(threads);
             let got = p.install(|| {
                 warm(|| {
                     (0..50)
@@ -97,7 +90,7 @@ mod tests {
 
     #[test]
     fn a_panic_inside_reaches_the_caller_and_leaves_the_pool_usable() {
-        let p = pool(2);
+        let p = crate::test_pool(2);
         let out = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
             p.install(|| warm(|| -> u64 { panic!("inside") }))
         }));
