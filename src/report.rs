@@ -7,7 +7,7 @@ use serde::Serialize;
 
 use crate::complex::topology::Offender;
 use crate::complex::{Complex, Topology};
-use crate::trace::Sample;
+use crate::trace::{LevelSteps, Sample};
 
 /// What an adapter is, for reports and `isomesh info`.
 #[derive(Clone, Debug, Serialize)]
@@ -126,6 +126,8 @@ pub struct Report {
     pub bytes_per_simplex: f64,
     /// Breadth-first levels.
     pub levels: u64,
+    /// Where the levels' wall time went, seconds (zero for a scan).
+    pub level_steps_s: LevelSteps,
     /// Most simplices one level found.
     pub widest_level: u64,
     /// k-simplices sent to the oracle.
@@ -293,6 +295,7 @@ impl Report {
             max_memory_bytes: run.max_memory_bytes,
             bytes_per_simplex: per(run.peak_memory_bytes as f64, n as f64),
             levels: st.levels,
+            level_steps_s: st.steps,
             widest_level: st.widest_level,
             oracle_calls: st.oracle_calls,
             exact_decisions: st.exact_decisions,

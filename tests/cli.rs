@@ -94,6 +94,25 @@ fn trace_writes_the_sample_and_the_report() {
     }
     assert_eq!(r["suspect_crossings"], 0);
     assert!(r["widest_level"].as_u64().unwrap() >= 2);
+    // The levels' steps: each timed, together within the trace's wall time.
+    let steps = r["level_steps_s"].as_object().unwrap();
+    let mut names: Vec<&str> = steps.keys().map(String::as_str).collect();
+    names.sort_unstable();
+    assert_eq!(
+        names,
+        [
+            "accepting",
+            "deciding",
+            "naming",
+            "new_vertices",
+            "ordering"
+        ],
+        "{r}"
+    );
+    let each: Vec<f64> = steps.values().map(|v| v.as_f64().unwrap()).collect();
+    assert!(each.iter().all(|&s| s > 0.0), "{r}");
+    let sum: f64 = each.iter().sum();
+    assert!(sum <= r["elapsed_s"].as_f64().unwrap(), "{r}");
     // Pivoting: about one oracle call per output simplex, no fallback on a plain circle.
     let calls = r["oracle_calls"].as_u64().unwrap();
     let count = r["simplex_count"].as_u64().unwrap();

@@ -267,6 +267,7 @@ const CONTRACT_KEYS: &[&str] = &[
     "peak_memory_bytes",
     "bytes_per_simplex",
     "levels",
+    "level_steps_s",
     "widest_level",
     "oracle_calls",
     "exact_decisions",
@@ -352,8 +353,9 @@ fn the_result_and_its_report_match_the_command_line() {
 /// Every key of two reports of one run but those that time it or weigh its heap.
 #[cfg(feature = "cli")]
 fn assert_same_report(cli: &serde_json::Value, lib: &serde_json::Value, case: &str) {
-    const MEASURED: [&str; 7] = [
+    const MEASURED: [&str; 8] = [
         "elapsed_s",
+        "level_steps_s",
         "host_s",
         "simplices_per_s",
         "peak_memory_bytes",

@@ -3,9 +3,9 @@
 //! breadth-first loop over levels ([`super::level`] computes one level).
 
 use std::collections::VecDeque;
-use std::ops::Range;
-
 use std::hash::BuildHasher;
+use std::ops::Range;
+use std::time::Instant;
 
 use foldhash::fast::FixedState;
 use hashbrown::HashTable;
@@ -16,7 +16,8 @@ use super::recent::Replicas;
 use super::sorting::sort;
 use super::table::{Key, Table};
 use super::{
-    Decisions, GrowingValues, Progress, StopReason, TraceContext, TraceStats, DEFAULT_EXTENT_STEPS,
+    Decisions, GrowingValues, LevelSteps, Progress, StopReason, TraceContext, TraceStats,
+    DEFAULT_EXTENT_STEPS,
 };
 use crate::cpu::solve::Status;
 use crate::error::Result;
@@ -338,11 +339,13 @@ impl<'a, const W: usize> Engine<'a, W> {
             let Some(found) = self.step(&front, with_points)? else {
                 return Ok(());
             };
+            let clock = Instant::now();
             front = self.accept(found)?;
             if let (Some(levels), Members::Range(next)) = (&mut self.levels, &front.members) {
                 let window = recent_levels(self.ctx.k);
                 levels.advance(&self.s, next.clone(), &self.verts, window);
             }
+            LevelSteps::add(&mut self.stats.steps.accepting, clock);
             let large = self.s.len() > super::NO_BOX_SIMPLICES;
             let limit = u64::from(if large {
                 super::NO_BOX_BUDGET_STEPS

@@ -9,6 +9,7 @@
 
 use std::ops::Range;
 use std::sync::MutexGuard;
+use std::time::Instant;
 
 use rayon::prelude::*;
 
@@ -17,6 +18,7 @@ use super::frontier::{par_ranges, Back, Found, Frontier, Verdicts};
 use super::recent::RecentVertices;
 use super::sorting::{sort, sort_runs};
 use super::table::Key;
+use super::LevelSteps;
 use crate::cpu::pivot::Pivot;
 use crate::cpu::solve::Status;
 use crate::error::Result;
@@ -393,6 +395,7 @@ impl<const W: usize> Engine<'_, W> {
             return Ok(None);
         };
 
+        let clock = Instant::now();
         // Round 2: every facet of the cofacets whose named facet the oracle rejected.
         // `first` holds the distinct keys of the sorted `named`, in order: key j of `first`
         // is the run of equal keys at `starts[j]` there.
@@ -435,12 +438,20 @@ impl<const W: usize> Engine<'_, W> {
             });
             err?;
         }
-        if second.is_empty() {
-            return Ok(Some(self.found([first], with_points)));
-        }
-        sort(&mut second);
-        let second = self.decide_unique(&second, rows)?;
-        Ok(Some(self.found([first, second], with_points)))
+        let second = if second.is_empty() {
+            None
+        } else {
+            sort(&mut second);
+            Some(self.decide_unique(&second, rows)?)
+        };
+        LevelSteps::add(&mut self.stats.steps.deciding, clock);
+        let clock = Instant::now();
+        let found = match second {
+            None => self.found([first], with_points),
+            Some(second) => self.found([first, second], with_points),
+        };
+        LevelSteps::add(&mut self.stats.steps.accepting, clock);
+        Ok(Some(found))
     }
 
     /// The most cofacets of a frontier simplex, from a sample of up to 16 spread over it.
@@ -512,12 +523,16 @@ impl<const W: usize> Engine<'_, W> {
         if self.must_stop(naming(slices[0].len())) {
             return Ok(None);
         }
+        let clock = Instant::now();
         let mut next = Some(self.name(frontier, slices[0].clone()));
+        LevelSteps::add(&mut self.stats.steps.naming, clock);
         for c in 0..slices.len() {
             let mut named = next
                 .take()
                 .expect("each slice is named before it is decided")?;
+            let clock = Instant::now();
             self.name_deferred(frontier, &mut named)?;
+            LevelSteps::add(&mut self.stats.steps.new_vertices, clock);
             // Naming stops short when a signal comes: the slice is incomplete.
             if self.signalled() {
                 return Ok(None);
@@ -532,6 +547,7 @@ impl<const W: usize> Engine<'_, W> {
             }
             self.stats.pivot_fallbacks += named.fallbacks;
             self.stats.non_finite += named.non_finite;
+            let clock = Instant::now();
             let mut cands = named.cands;
             sort_runs(&mut cands);
             let (keys, rows) = if sliced {
@@ -544,12 +560,14 @@ impl<const W: usize> Engine<'_, W> {
                 whole = Some((d.starts, d.back));
                 (d.keys, d.rows)
             };
+            LevelSteps::add(&mut self.stats.steps.ordering, clock);
             if let Some(r) = slices.get(c + 1) {
                 let now = held + (rows.len() + keys.len()) * 8 * W;
                 if self.must_stop_growing(now + naming(r.len()), 2 * len) {
                     return Ok(None);
                 }
             }
+            let clock = Instant::now();
             let (judged, named_next) = rayon::join(
                 || self.judge(&rows),
                 || slices.get(c + 1).map(|r| self.name(frontier, r.clone())),
@@ -558,6 +576,7 @@ impl<const W: usize> Engine<'_, W> {
             let (verdicts, exact) = judged?;
             self.count(&verdicts, exact, &rows);
             taken.push(keys, rows, verdicts);
+            LevelSteps::add(&mut self.stats.steps.deciding, clock);
             if sliced {
                 named_all.extend_from_slice(&cands);
             } else {

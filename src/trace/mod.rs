@@ -232,6 +232,8 @@ pub struct TraceStats {
     pub seed_points: u64,
     /// Wall time, seconds.
     pub elapsed_s: f64,
+    /// Where the levels' wall time went (zero for a scan).
+    pub steps: LevelSteps,
     /// Bytes held by the trace's own containers at the end.
     pub memory_bytes: u64,
     /// Set when the trace stopped early.
@@ -241,6 +243,32 @@ pub struct TraceStats {
     /// there, whose zero set is no manifold. See [`checks::region_error`].
     #[serde(skip)]
     pub zero_region: Option<(usize, Vec<f64>)>,
+}
+
+/// Where a breadth-first trace's wall time went, seconds summed over its levels, a step
+/// after another: what a level does between its parallel parts is timed with them.
+#[derive(Clone, Copy, Debug, Default, Serialize)]
+pub struct LevelSteps {
+    /// Naming the exits of the frontier's cofacets whose new vertex is cached (of a level
+    /// in slices, the first slice's: the others are named while the oracle decides).
+    pub naming: f64,
+    /// Evaluating f at the cofacets' new vertices, caching them, and naming those
+    /// cofacets' exits.
+    pub new_vertices: f64,
+    /// Sorting the named simplices and finding the distinct ones, with their rows and ways
+    /// back.
+    pub ordering: f64,
+    /// The oracle's decisions (and the retries where it rejected a named simplex).
+    pub deciding: f64,
+    /// Taking the level into S and the rim, and making it the next frontier.
+    pub accepting: f64,
+}
+
+impl LevelSteps {
+    /// Adds the time since `since` to `step`.
+    pub(crate) fn add(step: &mut f64, since: std::time::Instant) {
+        *step += since.elapsed().as_secs_f64();
+    }
 }
 
 impl TraceStats {
