@@ -13,6 +13,7 @@ use rayon::prelude::*;
 
 use super::frontier::{Back, Found, Frontier, Members, Verdicts};
 use super::recent::Replicas;
+use super::seen::SeenVertices;
 use super::sorting::sort;
 use super::table::{Key, Table};
 use super::{
@@ -62,6 +63,9 @@ pub(crate) struct Levels<const W: usize> {
     /// Naming looks a cofacet's new vertex up there and defers it when it is not found (the
     /// deferred vertices are then looked up in the whole cache, once each).
     pub vertices: Replicas<W>,
+    /// Every cached vertex, as a filter that tells most deferred vertices uncached without
+    /// a lookup in the whole cache.
+    pub seen: SeenVertices<W>,
     /// Where each of those levels' vertices start in the cache, oldest first, then the
     /// cache's length when they were last brought up to date.
     starts: VecDeque<usize>,
@@ -162,6 +166,7 @@ impl<const W: usize> Levels<W> {
         Levels {
             keys,
             vertices: Replicas::new(),
+            seen: SeenVertices::new(),
             starts: VecDeque::from([cached]),
         }
     }

@@ -656,16 +656,18 @@ impl<const W: usize> Engine<'_, W> {
         drop(by_vertex);
         // Where naming looked only in the last levels' tables, a deferred vertex may be
         // cached already (by an older level); elsewhere it was looked up and is new.
-        let naming_used_tables = (self.levels.as_ref()).is_some_and(|l| l.recent_from().is_some());
-        let cached: Vec<Option<usize>> = if naming_used_tables {
-            let verts = &self.verts;
-            distinct
-                .par_iter()
-                .with_min_len(VERTEX_LOOKUPS)
-                .map(|v| verts.find(v))
-                .collect()
-        } else {
-            vec![None; distinct.len()]
+        // Most are uncached: the filter of the cache's keys spares their lookups.
+        let cached: Vec<Option<usize>> = match &mut self.levels {
+            Some(levels) if levels.recent_from().is_some() => {
+                levels.seen.sync(&self.verts);
+                let (verts, seen) = (&self.verts, &levels.seen);
+                distinct
+                    .par_iter()
+                    .with_min_len(VERTEX_LOOKUPS)
+                    .map(|v| seen.may_hold(v).then(|| verts.find(v)).flatten())
+                    .collect()
+            }
+            _ => vec![None; distinct.len()],
         };
         let start = self.verts.len();
         let mut keys: Vec<Key<W>> = Vec::with_capacity(distinct.len());

@@ -27,6 +27,7 @@ mod region;
 mod sample;
 pub mod scan;
 mod seeds;
+mod seen;
 mod sorting;
 mod table;
 mod warm;
