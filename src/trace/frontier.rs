@@ -138,9 +138,11 @@ impl Members {
     }
 }
 
-/// Runs `f` on consecutive ranges covering `0..len`, about four per thread and at least
-/// `min_chunk` items each, in parallel when there is more than one; returns the results
-/// in order. On one thread, one range.
+/// Runs `f` on consecutive ranges covering `0..len`, about two per thread (enough to
+/// even out the threads; each range's candidates are a sorted run that the level's ordering
+/// merges, so more ranges cost more merging) and at least `min_chunk` items each, in
+/// parallel when there is more than one; returns the results in order. On one thread, one
+/// range.
 pub(crate) fn par_ranges<T: Send>(
     len: usize,
     min_chunk: usize,
@@ -150,7 +152,7 @@ pub(crate) fn par_ranges<T: Send>(
     if threads == 1 {
         return vec![f(0..len)];
     }
-    let chunk = len.div_ceil(4 * threads).max(min_chunk).max(1);
+    let chunk = len.div_ceil(2 * threads).max(min_chunk).max(1);
     let parts = len.div_ceil(chunk);
     if parts <= 1 {
         return vec![f(0..len)];
