@@ -1,7 +1,7 @@
 //! A filter over the vertex cache's keys, one bit per slot of a hash: a key whose bit is
 //! clear is not cached. A level's new vertices are nearly all uncached (the sphere at edge
 //! 0.01: 257 of 435,535 were), so most skip their lookup in the whole cache, whose tables
-//! outgrow a core's cache, for a bit read from a table 8 times smaller.
+//! outgrow a core's cache, for one bit of a bitset of 2 to 4 bytes per cached key.
 
 use std::hash::BuildHasher;
 
