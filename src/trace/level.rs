@@ -16,7 +16,7 @@ use rayon::prelude::*;
 use super::engine::Engine;
 use super::frontier::{par_ranges, Back, Found, Frontier, Verdicts};
 use super::recent::RecentVertices;
-use super::sorting::{sort, sort_runs};
+use super::sorting::{distinct_ranks, sort, sort_runs};
 use super::table::Key;
 use super::LevelSteps;
 use crate::cpu::pivot::Pivot;
@@ -639,21 +639,9 @@ impl<const W: usize> Engine<'_, W> {
         // The distinct vertices in key order. Those not cached yet (in a breadth-first run
         // naming looked up only the last levels' vertices) are cached in that order: each
         // gets the cache index its rank among them gives.
-        let mut by_vertex: Vec<(Key<W>, u32)> = deferred
-            .iter()
-            .enumerate()
-            .map(|(i, t)| (t.vertex, i as u32))
-            .collect();
-        sort(&mut by_vertex);
-        let mut distinct: Vec<Key<W>> = Vec::with_capacity(by_vertex.len());
-        let mut which = vec![0u32; deferred.len()];
-        for (i, (v, t)) in by_vertex.iter().enumerate() {
-            if i == 0 || by_vertex[i - 1].0 != *v {
-                distinct.push(*v);
-            }
-            which[*t as usize] = (distinct.len() - 1) as u32;
-        }
-        drop(by_vertex);
+        let vertices: Vec<Key<W>> = deferred.iter().map(|t| t.vertex).collect();
+        let (distinct, which) = distinct_ranks(&vertices);
+        drop(vertices);
         // Where naming looked only in the last levels' tables, a deferred vertex may be
         // cached already (by an older level); elsewhere it was looked up and is new.
         // Most are uncached: the filter of the cache's keys spares their lookups.

@@ -6,7 +6,13 @@
 //! gathers its part of every chunk and merges them, in parallel. The output is the sorted
 //! array: for items whose order is total on their whole value (equal items are
 //! identical), the same as a sequential sort's, whatever the threads.
+//!
+//! [`distinct_ranks`] finds a list's distinct values by hashing, and sorts only them.
 
+use std::hash::{BuildHasher, Hash};
+
+use foldhash::fast::FixedState;
+use hashbrown::hash_table::{Entry, HashTable};
 use rayon::prelude::*;
 
 /// Below this length a sort runs on the calling thread.
@@ -30,6 +36,43 @@ pub(crate) fn sort_runs<T: Ord + Copy + Send + Sync>(v: &mut Vec<T>) {
         // A stable sort finds the runs and merges them.
         None => v.sort(),
     }
+}
+
+/// The distinct values of `items` in increasing order, and for each item the position of
+/// its value among them. A hash table finds the distinct values in one pass, so that only
+/// they are sorted (a level's new vertices come about 2.5 times each).
+pub(crate) fn distinct_ranks<K: Ord + Hash + Copy + Send + Sync>(
+    items: &[K],
+) -> (Vec<K>, Vec<u32>) {
+    let hasher = FixedState::default();
+    let mut table: HashTable<u32> = HashTable::with_capacity(items.len());
+    // Each distinct value with its number in the order of first appearance.
+    let mut firsts: Vec<(K, u32)> = Vec::new();
+    let mut slots: Vec<u32> = Vec::with_capacity(items.len());
+    for x in items {
+        let h = hasher.hash_one(x);
+        let at = |&j: &u32| hasher.hash_one(firsts[j as usize].0);
+        let slot = match table.entry(h, |&j| firsts[j as usize].0 == *x, at) {
+            Entry::Occupied(e) => *e.get(),
+            Entry::Vacant(e) => {
+                let j = firsts.len() as u32;
+                e.insert(j);
+                firsts.push((*x, j));
+                j
+            }
+        };
+        slots.push(slot);
+    }
+    drop(table);
+    sort(&mut firsts);
+    let mut rank = vec![0u32; firsts.len()];
+    for (r, &(_, j)) in firsts.iter().enumerate() {
+        rank[j as usize] = r as u32;
+    }
+    for s in &mut slots {
+        *s = rank[*s as usize];
+    }
+    (firsts.into_iter().map(|(x, _)| x).collect(), slots)
 }
 
 /// How many chunks (and pieces) a sort of `len` items uses; `None` to sort on one thread.
@@ -140,6 +183,28 @@ mod tests {
                     let mut got = runs;
                     p.install(|| sort_runs(&mut got));
                     assert!(got == want, "runs: {threads} threads, {n} items < {modulo}");
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn distinct_values_in_order_and_each_items_rank_among_them() {
+        for threads in [1, 2, 3] {
+            let p = crate::test_pool(threads);
+            for (n, modulo) in [(0, 10), (1, 10), (700, 5), (5000, 1 << 40), (9001, 3000)] {
+                let items: Vec<[u64; 2]> = noise(n, 0x2545 + n as u64, modulo)
+                    .into_iter()
+                    .map(|x| [x % 7, x])
+                    .collect();
+                let mut want = items.clone();
+                want.sort_unstable();
+                want.dedup();
+                let (distinct, ranks) = p.install(|| distinct_ranks(&items));
+                assert!(distinct == want, "{threads} threads, {n} items < {modulo}");
+                assert_eq!(ranks.len(), n);
+                for (x, &r) in items.iter().zip(&ranks) {
+                    assert_eq!(distinct[r as usize], *x, "{threads} threads, {n} items");
                 }
             }
         }
