@@ -2,11 +2,13 @@
 //! ways back, the oracle's verdicts), and the parallel helpers the level and the engine share.
 
 use std::ops::Range;
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 
 use rayon::prelude::*;
 
 use super::table::Key;
 use crate::cpu::solve::Status;
+use crate::error::Result;
 
 /// Oracle verdicts on a batch of candidates.
 pub(crate) struct Verdicts {
@@ -143,6 +145,53 @@ impl Members {
 /// merges, so more ranges cost more merging) and at least `min_chunk` items each, in
 /// parallel when there is more than one; returns the results in order. On one thread, one
 /// range.
+/// Runs `f(state, range)` over `0..len` in ranges of `chunk` items, which the pool's threads
+/// claim one after another until none is left: each thread works in a state of its own
+/// (made by `start` when it claims its first range, handed to `finish` after its last), so
+/// the threads stay busy to the end, and the work comes back in about one part per thread,
+/// in no set order. On one thread, or for one range, one call of `f` on all the items. The
+/// first error met stops the claims and is returned.
+pub(crate) fn par_claim<S, T: Send>(
+    len: usize,
+    chunk: usize,
+    start: impl Fn() -> S + Sync,
+    f: impl Fn(&mut S, Range<usize>) -> Result<()> + Sync,
+    finish: impl Fn(S) -> T + Sync,
+) -> Result<Vec<T>> {
+    let threads = rayon::current_num_threads();
+    let chunk = chunk.max(1);
+    if threads == 1 || len <= chunk {
+        let mut state = start();
+        f(&mut state, 0..len)?;
+        return Ok(vec![finish(state)]);
+    }
+    let next = AtomicUsize::new(0);
+    let failed = AtomicBool::new(false);
+    let parts: Vec<Result<Option<T>>> = (0..threads)
+        .into_par_iter()
+        .map(|_| {
+            let mut state = None;
+            while !failed.load(Ordering::Relaxed) {
+                let at = next.fetch_add(chunk, Ordering::Relaxed);
+                if at >= len {
+                    break;
+                }
+                let s = state.get_or_insert_with(&start);
+                if let Err(e) = f(s, at..(at + chunk).min(len)) {
+                    failed.store(true, Ordering::Relaxed);
+                    return Err(e);
+                }
+            }
+            Ok(state.map(&finish))
+        })
+        .collect();
+    let mut out = Vec::with_capacity(parts.len());
+    for p in parts {
+        out.extend(p?);
+    }
+    Ok(out)
+}
+
 pub(crate) fn par_ranges<T: Send>(
     len: usize,
     min_chunk: usize,
@@ -161,4 +210,72 @@ pub(crate) fn par_ranges<T: Send>(
         .into_par_iter()
         .map(|c| f(c * chunk..((c + 1) * chunk).min(len)))
         .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::error::Error;
+
+    #[test]
+    fn claimed_ranges_cover_every_item_once_in_about_a_part_per_thread() {
+        for threads in [1, 2, 3, 8] {
+            let p = crate::test_pool(threads);
+            for (len, chunk) in [(0, 4), (1, 4), (4, 4), (5, 4), (1000, 7), (1000, 1)] {
+                let parts = p
+                    .install(|| {
+                        par_claim(
+                            len,
+                            chunk,
+                            Vec::new,
+                            |seen: &mut Vec<usize>, r| {
+                                assert!(threads == 1 || r.len() <= chunk);
+                                assert!(!r.is_empty() || len == 0);
+                                seen.extend(r);
+                                Ok(())
+                            },
+                            |seen| seen,
+                        )
+                    })
+                    .unwrap();
+                assert!(
+                    parts.len() <= threads.max(1),
+                    "{threads} threads: {} parts",
+                    parts.len()
+                );
+                let mut all: Vec<usize> = parts.concat();
+                all.sort_unstable();
+                assert!(
+                    all == (0..len).collect::<Vec<_>>(),
+                    "{threads} threads, {len} items"
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn a_claimed_range_that_fails_stops_the_claims_with_its_error() {
+        let p = crate::test_pool(3);
+        let done = AtomicUsize::new(0);
+        let out = p.install(|| {
+            par_claim(
+                10_000,
+                10,
+                || (),
+                |_, r| {
+                    done.fetch_add(1, Ordering::Relaxed);
+                    if r.contains(&500) {
+                        return Err(Error::Trace("at 500".into()));
+                    }
+                    Ok(())
+                },
+                |_| (),
+            )
+        });
+        assert!(matches!(out, Err(Error::Trace(m)) if m == "at 500"));
+        assert!(
+            done.load(Ordering::Relaxed) < 1000,
+            "claims went on after the error"
+        );
+    }
 }

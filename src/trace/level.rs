@@ -14,7 +14,7 @@ use std::time::Instant;
 use rayon::prelude::*;
 
 use super::engine::Engine;
-use super::frontier::{par_ranges, Back, Found, Frontier, Verdicts};
+use super::frontier::{par_claim, par_ranges, Back, Found, Frontier, Verdicts};
 use super::recent::RecentVertices;
 use super::sorting::{distinct_ranks, sort, sort_runs};
 use super::table::Key;
@@ -24,8 +24,8 @@ use crate::cpu::solve::Status;
 use crate::error::Result;
 use crate::triangulation::{copy_run, shift_by_mask, Simplex, MAX_DIM, RUN_BLOCK};
 
-/// Fewest frontier simplices per parallel work item.
-const SIGMA_CHUNK: usize = 24;
+/// Frontier simplices a thread claims at a time for naming.
+const SIGMA_CLAIM: usize = 32;
 /// Most candidates a slice of a level names on the CPU (the limit and signals are checked
 /// between slices).
 const SLICE_CANDIDATES: usize = 1 << 20;
@@ -93,8 +93,7 @@ impl<const W: usize> Named<W> {
 
     /// Appends the parts in order, growing each vector once (into an empty one, the first
     /// part is moved, not copied).
-    fn extend(&mut self, parts: Vec<Result<Named<W>>>) -> Result<()> {
-        let mut parts = parts.into_iter().collect::<Result<Vec<_>>>()?;
+    fn extend(&mut self, mut parts: Vec<Named<W>>) {
         if self.is_empty() && !parts.is_empty() {
             let (fallbacks, non_finite) = (self.fallbacks, self.non_finite);
             *self = parts.remove(0);
@@ -117,7 +116,6 @@ impl<const W: usize> Named<W> {
             self.fallbacks += p.fallbacks;
             self.non_finite += p.non_finite;
         }
-        Ok(())
     }
 }
 
@@ -600,28 +598,42 @@ impl<const W: usize> Engine<'_, W> {
     /// Round 1's naming for the frontier simplices `slice`: the exit of every cofacet whose
     /// new vertex is cached; the others are deferred.
     fn name(&self, frontier: &Frontier, slice: Range<usize>) -> Result<Named<W>> {
-        let parts = par_ranges(slice.len(), SIGMA_CHUNK, |r| -> Result<Named<W>> {
-            // Commonly under two new candidates and one deferred cofacet per simplex.
-            let mut namer = Namer::new(self, frontier, 2 * r.len(), r.len());
-            namer.work.recent = (self.levels.as_ref()).and_then(|l| {
-                let from = l.recent_from()?;
-                Some(l.vertices.mine(&self.verts, from))
-            });
-            for i in r {
-                // A stop asked for meanwhile: the caller drops this slice unfinished.
-                if self.ctx.interrupted() {
-                    break;
+        // Commonly under two new candidates and one deferred cofacet per simplex.
+        let share = slice.len().div_ceil(rayon::current_num_threads());
+        let parts = par_claim(
+            slice.len(),
+            SIGMA_CLAIM,
+            || {
+                let mut namer = Namer::new(self, frontier, 2 * share, share);
+                namer.work.recent = (self.levels.as_ref()).and_then(|l| {
+                    let from = l.recent_from()?;
+                    Some(l.vertices.mine(&self.verts, from))
+                });
+                namer
+            },
+            |namer, r| {
+                for i in r {
+                    // A stop asked for meanwhile: the caller drops this slice unfinished.
+                    if self.ctx.interrupted() {
+                        break;
+                    }
+                    namer.all_cofacets(slice.start + i)?;
                 }
-                namer.all_cofacets(slice.start + i)?;
-            }
-            if !self.ctx.interrupted() {
-                namer.work.out.cands.sort_unstable();
-            }
-            Ok(namer.work.out)
-        });
+                Ok(())
+            },
+            |namer| self.finish(namer),
+        )?;
         let mut named = Named::with_capacity(0, 0, 0);
-        named.extend(parts)?;
+        named.extend(parts);
         Ok(named)
+    }
+
+    /// What a namer named, its candidates sorted (unless a stop was asked for).
+    fn finish(&self, mut namer: Namer<'_, '_, W>) -> Named<W> {
+        if !self.ctx.interrupted() {
+            namer.work.out.cands.sort_unstable();
+        }
+        namer.work.out
     }
 
     /// Evaluates f at the new vertices of the deferred cofacets of `named`, then names
@@ -686,24 +698,27 @@ impl<const W: usize> Engine<'_, W> {
         // One pivot state per run of a frontier simplex's deferred cofacets, in order.
         debug_assert_eq!(loaded.len(), starts.len());
         let state = pivots.len() / loaded.len().max(1);
-        let parts = par_ranges(starts.len(), SIGMA_CHUNK, |r| -> Result<Named<W>> {
-            let end = starts.get(r.end).copied().unwrap_or(with_apex.len());
-            let mut namer = Namer::new(self, frontier, end - starts[r.start], 0);
-            for s in r {
-                if self.ctx.interrupted() {
-                    break;
+        let share = with_apex.len().div_ceil(rayon::current_num_threads());
+        let parts = par_claim(
+            starts.len(),
+            SIGMA_CLAIM,
+            || Namer::new(self, frontier, share, 0),
+            |namer, r| {
+                for s in r {
+                    if self.ctx.interrupted() {
+                        break;
+                    }
+                    let end = starts.get(s + 1).copied().unwrap_or(with_apex.len());
+                    let group = &with_apex[starts[s]..end];
+                    let pivot = (&pivots[s * state..(s + 1) * state], loaded[s]);
+                    namer.some_cofacets(group[0].0.from as usize, group, pivot)?;
                 }
-                let end = starts.get(s + 1).copied().unwrap_or(with_apex.len());
-                let group = &with_apex[starts[s]..end];
-                let pivot = (&pivots[s * state..(s + 1) * state], loaded[s]);
-                namer.some_cofacets(group[0].0.from as usize, group, pivot)?;
-            }
-            if !self.ctx.interrupted() {
-                namer.work.out.cands.sort_unstable();
-            }
-            Ok(namer.work.out)
-        });
-        named.extend(parts)
+                Ok(())
+            },
+            |namer| self.finish(namer),
+        )?;
+        named.extend(parts);
+        Ok(())
     }
 
     /// Whether `key`, a facet of a cofacet of the frontier, is neither in S nor in the rim.
