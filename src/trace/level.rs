@@ -91,8 +91,9 @@ impl<const W: usize> Named<W> {
         }
     }
 
-    /// Appends the parts in order, growing each vector once (into an empty one, the first
-    /// part is moved, not copied).
+    /// Appends the parts one after another, growing each vector once (into an empty one,
+    /// the first part is moved, not copied). Each part keeps its deferred cofacets and their
+    /// pivot states together, so any order of the parts names the same candidates.
     fn extend(&mut self, mut parts: Vec<Named<W>>) {
         if self.is_empty() && !parts.is_empty() {
             let (fallbacks, non_finite) = (self.fallbacks, self.non_finite);
