@@ -140,11 +140,6 @@ impl Members {
     }
 }
 
-/// Runs `f` on consecutive ranges covering `0..len`, about two per thread (enough to
-/// even out the threads; each range's candidates are a sorted run that the level's ordering
-/// merges, so more ranges cost more merging) and at least `min_chunk` items each, in
-/// parallel when there is more than one; returns the results in order. On one thread, one
-/// range.
 /// Runs `f(state, range)` over `0..len` in ranges of `chunk` items, which the pool's threads
 /// claim one after another until none is left: each thread works in a state of its own
 /// (made by `start` when it claims its first range, handed to `finish` after its last), so
@@ -192,6 +187,9 @@ pub(crate) fn par_claim<S, T: Send>(
     Ok(out)
 }
 
+/// Runs `f` on consecutive ranges covering `0..len`, about two per thread and at least
+/// `min_chunk` items each, in parallel when there is more than one; returns the results in
+/// order. On one thread, one range.
 pub(crate) fn par_ranges<T: Send>(
     len: usize,
     min_chunk: usize,
