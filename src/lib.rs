@@ -79,6 +79,7 @@ pub mod memory;
 pub mod mesher;
 pub mod report;
 pub mod shard;
+pub(crate) mod threads;
 pub mod trace;
 pub mod triangulation;
 

@@ -16,10 +16,14 @@ const MIN_CHUNK: usize = 64;
 const SERIAL_BATCH: usize = 1 << 16;
 
 /// Items per parallel chunk for `len` items: about four chunks per thread, within
-/// `MIN_CHUNK..=CHUNK`.
+/// `MIN_CHUNK..=CHUNK`; all of them on a thread that runs its steps alone
+/// ([`crate::threads`]).
 fn chunk_for(len: usize) -> usize {
-    len.div_ceil(4 * rayon::current_num_threads())
-        .clamp(MIN_CHUNK, CHUNK)
+    match crate::threads::threads() {
+        // One chunk: the calling thread's.
+        1 => len.max(1),
+        threads => len.div_ceil(4 * threads).clamp(MIN_CHUNK, CHUNK),
+    }
 }
 
 /// f at lattice vertices of `tri`: `lattice` holds n rows of d, `values` gets n rows of k.
@@ -35,6 +39,7 @@ pub fn eval_vertices(
         let mut x = vec![0.0; lattice.len()];
         x.par_chunks_mut(CHUNK * d)
             .zip(lattice.par_chunks(CHUNK * d))
+            .with_min_len(crate::threads::min_len(1))
             .for_each(|(p, lat)| {
                 tri.vertices_coords(lat, p);
             });

@@ -15,10 +15,10 @@ use super::frontier::{Back, Found, Frontier, Members, Verdicts};
 use super::recent::Replicas;
 use super::seen::SeenVertices;
 use super::sorting::sort;
+use super::step_threads::{Step, StepThreads};
 use super::table::{Key, Table};
 use super::{
-    Decisions, GrowingValues, LevelSteps, Progress, StopReason, TraceContext, TraceStats,
-    DEFAULT_EXTENT_STEPS,
+    Decisions, GrowingValues, Progress, StopReason, TraceContext, TraceStats, DEFAULT_EXTENT_STEPS,
 };
 use crate::cpu::solve::Status;
 use crate::error::Result;
@@ -53,6 +53,8 @@ pub(crate) struct Engine<'a, const W: usize> {
     /// Keys of S scanned by [`Engine::s_holds`] since S's table was last brought up to
     /// date.
     scanned: usize,
+    /// Whether each step of a level runs on all the pool's threads or on this one.
+    split: StepThreads,
 }
 
 /// The keys of the last two levels of a breadth-first run, and the vertices cached in its
@@ -109,7 +111,7 @@ impl<const W: usize> LevelKeys<W> {
         let hasher = &self.hasher;
         let rehash = |k: &Key<W>| hasher.hash_one(k);
         let tables = &mut self.tables[self.newest * LEVEL_SHARDS..][..LEVEL_SHARDS];
-        if level.len() < PAR_LEVEL || rayon::current_num_threads() == 1 {
+        if level.len() < PAR_LEVEL || crate::threads::threads() == 1 {
             tables.iter_mut().for_each(HashTable::clear);
             for i in level {
                 let key = s.key(i);
@@ -193,6 +195,7 @@ impl<const W: usize> Levels<W> {
 
 impl<'a, const W: usize> Engine<'a, W> {
     pub fn new(ctx: TraceContext<'a>) -> Self {
+        let split = StepThreads::new(ctx.step_threads, rayon::current_num_threads());
         Engine {
             ctx,
             s: Table::fixed(),
@@ -205,7 +208,35 @@ impl<'a, const W: usize> Engine<'a, W> {
             origins: Vec::new(),
             levels: None,
             scanned: 0,
+            split,
         }
+    }
+
+    /// Runs `f`, the step `step` of a level of `units` frontier simplices, on all the pool's
+    /// threads or on this one alone, as [`StepThreads`] chooses, and adds its time to the
+    /// step's in [`TraceStats::steps`]. Within a level run alone, a step runs alone too
+    /// and is not counted.
+    pub(super) fn run_step<R>(
+        &mut self,
+        step: Step,
+        units: usize,
+        f: impl FnOnce(&mut Self) -> R,
+    ) -> R {
+        let counted = crate::threads::threads() > 1;
+        let all = counted && self.split.all(step, units);
+        let clock = Instant::now();
+        let out = {
+            let _alone = crate::threads::alone_if(!all);
+            f(self)
+        };
+        let took = clock.elapsed();
+        if counted {
+            self.split.record(step, all, units, took);
+        }
+        if let Some(time) = self.stats.steps.of(step) {
+            *time += took.as_secs_f64();
+        }
+        out
     }
 
     /// Bytes held by the trace's containers.
@@ -341,16 +372,24 @@ impl<'a, const W: usize> Engine<'a, W> {
         while !front.members.is_empty() {
             // Points only serve to test the domain here (the sample computes its own).
             let with_points = !self.ctx.domain.is_everywhere();
-            let Some(found) = self.step(&front, with_points)? else {
+            let units = front.members.len();
+            let next = self.run_step(Step::Level, units, |e| -> Result<Option<Frontier>> {
+                let Some(found) = e.step(&front, with_points)? else {
+                    return Ok(None);
+                };
+                e.run_step(Step::Accepting, units, |e| {
+                    let next = e.accept(found)?;
+                    if let (Some(levels), Members::Range(r)) = (&mut e.levels, &next.members) {
+                        let window = recent_levels(e.ctx.k);
+                        levels.advance(&e.s, r.clone(), &e.verts, window);
+                    }
+                    Ok(Some(next))
+                })
+            })?;
+            let Some(next) = next else {
                 return Ok(());
             };
-            let clock = Instant::now();
-            front = self.accept(found)?;
-            if let (Some(levels), Members::Range(next)) = (&mut self.levels, &front.members) {
-                let window = recent_levels(self.ctx.k);
-                levels.advance(&self.s, next.clone(), &self.verts, window);
-            }
-            LevelSteps::add(&mut self.stats.steps.accepting, clock);
+            front = next;
             let large = self.s.len() > super::NO_BOX_SIMPLICES;
             let limit = u64::from(if large {
                 super::NO_BOX_BUDGET_STEPS
@@ -462,7 +501,7 @@ impl<'a, const W: usize> Engine<'a, W> {
         lattice
             .par_chunks_exact_mut(d)
             .zip(keys.par_iter())
-            .with_min_len(CHUNK)
+            .with_min_len(crate::threads::min_len(CHUNK))
             .for_each(|(v, key)| self.ctx.codec.decode_vertex_w(key, v));
         let mut vals = vec![0.0; keys.len() * k];
         self.ctx
@@ -552,6 +591,7 @@ impl<'a, const W: usize> Engine<'a, W> {
         let missing = cands
             .par_chunks(CHUNK)
             .zip(idx.par_chunks_mut(CHUNK * n))
+            .with_min_len(crate::threads::min_len(1))
             .map(|(cs, rows)| -> Result<Vec<Key<W>>> {
                 let mut miss = Vec::new();
                 let mut vk = [0u64; W];
@@ -616,10 +656,14 @@ impl<'a, const W: usize> Engine<'a, W> {
             .filter(|&i| v.status[i].crossed())
             .collect();
         let mut points = vec![0.0; crossed.len() * d];
-        points.par_chunks_mut(d).zip(&crossed).for_each_init(
-            || self.ctx.codec.scratch(),
-            |s, (p, &i)| self.point(&cands[i], &v.lambda[i * n..(i + 1) * n], s, p),
-        );
+        points
+            .par_chunks_mut(d)
+            .zip(&crossed)
+            .with_min_len(crate::threads::min_len(1))
+            .for_each_init(
+                || self.ctx.codec.scratch(),
+                |s, (p, &i)| self.point(&cands[i], &v.lambda[i * n..(i + 1) * n], s, p),
+            );
         (crossed, points)
     }
 
@@ -647,7 +691,7 @@ impl<'a, const W: usize> Engine<'a, W> {
             found
                 .points
                 .par_chunks_exact(d)
-                .with_min_len(256)
+                .with_min_len(crate::threads::min_len(256))
                 .map(|p| !self.ctx.domain.contains(p))
                 .collect()
         };

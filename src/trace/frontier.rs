@@ -153,7 +153,7 @@ pub(crate) fn par_claim<S, T: Send>(
     f: impl Fn(&mut S, Range<usize>) -> Result<()> + Sync,
     finish: impl Fn(S) -> T + Sync,
 ) -> Result<Vec<T>> {
-    let threads = rayon::current_num_threads();
+    let threads = crate::threads::threads();
     let chunk = chunk.max(1);
     if threads == 1 || len <= chunk {
         let mut state = start();
@@ -195,7 +195,7 @@ pub(crate) fn par_ranges<T: Send>(
     min_chunk: usize,
     f: impl Fn(Range<usize>) -> T + Sync,
 ) -> Vec<T> {
-    let threads = rayon::current_num_threads();
+    let threads = crate::threads::threads();
     if threads == 1 {
         return vec![f(0..len)];
     }

@@ -17,6 +17,7 @@ use super::engine::Engine;
 use super::frontier::{par_claim, par_ranges, Back, Found, Frontier, Verdicts};
 use super::recent::RecentVertices;
 use super::sorting::{distinct_ranks, sort, sort_runs};
+use super::step_threads::Step;
 use super::table::Key;
 use super::LevelSteps;
 use crate::cpu::pivot::Pivot;
@@ -444,12 +445,10 @@ impl<const W: usize> Engine<'_, W> {
             Some(self.decide_unique(&second, rows)?)
         };
         LevelSteps::add(&mut self.stats.steps.deciding, clock);
-        let clock = Instant::now();
-        let found = match second {
-            None => self.found([first], with_points),
-            Some(second) => self.found([first, second], with_points),
-        };
-        LevelSteps::add(&mut self.stats.steps.accepting, clock);
+        let found = self.run_step(Step::Gathering, frontier.members.len(), |e| match second {
+            None => e.found([first], with_points),
+            Some(second) => e.found([first, second], with_points),
+        });
         Ok(Some(found))
     }
 
@@ -522,16 +521,13 @@ impl<const W: usize> Engine<'_, W> {
         if self.must_stop(naming(slices[0].len())) {
             return Ok(None);
         }
-        let clock = Instant::now();
-        let mut next = Some(self.name(frontier, slices[0].clone()));
-        LevelSteps::add(&mut self.stats.steps.naming, clock);
+        let first = slices[0].clone();
+        let mut next = Some(self.run_step(Step::Naming, len, |e| e.name(frontier, first)));
         for c in 0..slices.len() {
             let mut named = next
                 .take()
                 .expect("each slice is named before it is decided")?;
-            let clock = Instant::now();
             self.name_deferred(frontier, &mut named)?;
-            LevelSteps::add(&mut self.stats.steps.new_vertices, clock);
             // Naming stops short when a signal comes: the slice is incomplete.
             if self.signalled() {
                 return Ok(None);
@@ -546,36 +542,37 @@ impl<const W: usize> Engine<'_, W> {
             }
             self.stats.pivot_fallbacks += named.fallbacks;
             self.stats.non_finite += named.non_finite;
-            let clock = Instant::now();
             let mut cands = named.cands;
-            sort_runs(&mut cands);
-            let (keys, rows) = if sliced {
-                let new: Vec<&Candidate<W>> =
-                    firsts(&cands).filter(|c| !taken.has(&c.key)).collect();
-                let rows = cand_rows(&new, &frontier.rows, n);
-                (new.iter().map(|c| c.key).collect(), rows)
-            } else {
-                let d = distinct(&cands, &frontier.rows, n);
-                whole = Some((d.starts, d.back));
-                (d.keys, d.rows)
-            };
-            LevelSteps::add(&mut self.stats.steps.ordering, clock);
+            let (keys, rows) = self.run_step(Step::Ordering, len, |_| {
+                sort_runs(&mut cands);
+                if sliced {
+                    let new: Vec<&Candidate<W>> =
+                        firsts(&cands).filter(|c| !taken.has(&c.key)).collect();
+                    let rows = cand_rows(&new, &frontier.rows, n);
+                    (new.iter().map(|c| c.key).collect(), rows)
+                } else {
+                    let d = distinct(&cands, &frontier.rows, n);
+                    whole = Some((d.starts, d.back));
+                    (d.keys, d.rows)
+                }
+            });
             if let Some(r) = slices.get(c + 1) {
                 let now = held + (rows.len() + keys.len()) * 8 * W;
                 if self.must_stop_growing(now + naming(r.len()), 2 * len) {
                     return Ok(None);
                 }
             }
-            let clock = Instant::now();
-            let (judged, named_next) = rayon::join(
-                || self.judge(&rows),
-                || slices.get(c + 1).map(|r| self.name(frontier, r.clone())),
-            );
+            let (judged, named_next) = self.run_step(Step::Deciding, len, |e| {
+                let e = &*e;
+                rayon::join(
+                    || e.judge(&rows),
+                    || slices.get(c + 1).map(|r| e.name(frontier, r.clone())),
+                )
+            });
             next = named_next;
             let (verdicts, exact) = judged?;
             self.count(&verdicts, exact, &rows);
             taken.push(keys, rows, verdicts);
-            LevelSteps::add(&mut self.stats.steps.deciding, clock);
             if sliced {
                 named_all.extend_from_slice(&cands);
             } else {
@@ -600,7 +597,7 @@ impl<const W: usize> Engine<'_, W> {
     /// new vertex is cached; the others are deferred.
     fn name(&self, frontier: &Frontier, slice: Range<usize>) -> Result<Named<W>> {
         // Commonly under two new candidates and one deferred cofacet per simplex.
-        let share = slice.len().div_ceil(rayon::current_num_threads());
+        let share = slice.len().div_ceil(crate::threads::threads());
         let parts = par_claim(
             slice.len(),
             SIGMA_CLAIM,
@@ -638,7 +635,9 @@ impl<const W: usize> Engine<'_, W> {
     }
 
     /// Evaluates f at the new vertices of the deferred cofacets of `named`, then names
-    /// their exits.
+    /// their exits: two steps, each on the threads [`StepThreads`] chooses.
+    ///
+    /// [`StepThreads`]: super::step_threads::StepThreads
     fn name_deferred(&mut self, frontier: &Frontier, named: &mut Named<W>) -> Result<()> {
         if named.deferred.is_empty() {
             return Ok(());
@@ -649,6 +648,48 @@ impl<const W: usize> Engine<'_, W> {
         let deferred = std::mem::take(&mut named.deferred);
         let pivots = std::mem::take(&mut named.pivots);
         let loaded = std::mem::take(&mut named.loaded);
+        let units = frontier.members.len();
+        let Some(apex) = self.run_step(Step::Caching, units, |e| e.cache_deferred(&deferred))?
+        else {
+            return Ok(());
+        };
+        let with_apex: Vec<(Deferred<W>, u32)> = deferred.into_iter().zip(apex).collect();
+        let starts: Vec<usize> = (0..with_apex.len())
+            .filter(|&i| i == 0 || with_apex[i - 1].0.from != with_apex[i].0.from)
+            .collect();
+        // One pivot state per run of a frontier simplex's deferred cofacets, in order.
+        debug_assert_eq!(loaded.len(), starts.len());
+        let state = pivots.len() / loaded.len().max(1);
+        let parts = self.run_step(Step::NamingDeferred, units, |e| {
+            let e = &*e;
+            let share = with_apex.len().div_ceil(crate::threads::threads());
+            par_claim(
+                starts.len(),
+                SIGMA_CLAIM,
+                || Namer::new(e, frontier, share, 0),
+                |namer, r| {
+                    for s in r {
+                        if e.ctx.interrupted() {
+                            break;
+                        }
+                        let end = starts.get(s + 1).copied().unwrap_or(with_apex.len());
+                        let group = &with_apex[starts[s]..end];
+                        let pivot = (&pivots[s * state..(s + 1) * state], loaded[s]);
+                        namer.some_cofacets(group[0].0.from as usize, group, pivot)?;
+                    }
+                    Ok(())
+                },
+                |namer| e.finish(namer),
+            )
+        })?;
+        named.extend(parts);
+        Ok(())
+    }
+
+    /// Evaluates f at the new vertices of `deferred` not cached yet and caches them; returns
+    /// each deferred cofacet's vertex-cache index of its new vertex (`None` when a stop was
+    /// asked for meanwhile).
+    fn cache_deferred(&mut self, deferred: &[Deferred<W>]) -> Result<Option<Vec<u32>>> {
         // The distinct vertices in key order. Those not cached yet (in a breadth-first run
         // naming looked up only the last levels' vertices) are cached in that order: each
         // gets the cache index its rank among them gives.
@@ -664,7 +705,7 @@ impl<const W: usize> Engine<'_, W> {
                 let (verts, seen) = (&self.verts, &levels.seen);
                 distinct
                     .par_iter()
-                    .with_min_len(VERTEX_LOOKUPS)
+                    .with_min_len(crate::threads::min_len(VERTEX_LOOKUPS))
                     .map(|v| seen.may_hold(v).then(|| verts.find(v)).flatten())
                     .collect()
             }
@@ -684,42 +725,14 @@ impl<const W: usize> Engine<'_, W> {
             })
             .collect();
         drop(distinct);
-        let apex: Vec<u32> = which.iter().map(|&j| index[j as usize]).collect();
         // In pieces, between which a stop is heeded (the caller then drops the slice).
         for piece in keys.chunks(VERTEX_PIECE) {
             if self.ctx.interrupted() {
-                return Ok(());
+                return Ok(None);
             }
             self.add_sorted_vertices(piece)?;
         }
-        let with_apex: Vec<(Deferred<W>, u32)> = deferred.into_iter().zip(apex).collect();
-        let starts: Vec<usize> = (0..with_apex.len())
-            .filter(|&i| i == 0 || with_apex[i - 1].0.from != with_apex[i].0.from)
-            .collect();
-        // One pivot state per run of a frontier simplex's deferred cofacets, in order.
-        debug_assert_eq!(loaded.len(), starts.len());
-        let state = pivots.len() / loaded.len().max(1);
-        let share = with_apex.len().div_ceil(rayon::current_num_threads());
-        let parts = par_claim(
-            starts.len(),
-            SIGMA_CLAIM,
-            || Namer::new(self, frontier, share, 0),
-            |namer, r| {
-                for s in r {
-                    if self.ctx.interrupted() {
-                        break;
-                    }
-                    let end = starts.get(s + 1).copied().unwrap_or(with_apex.len());
-                    let group = &with_apex[starts[s]..end];
-                    let pivot = (&pivots[s * state..(s + 1) * state], loaded[s]);
-                    namer.some_cofacets(group[0].0.from as usize, group, pivot)?;
-                }
-                Ok(())
-            },
-            |namer| self.finish(namer),
-        )?;
-        named.extend(parts);
-        Ok(())
+        Ok(Some(which.iter().map(|&j| index[j as usize]).collect()))
     }
 
     /// Whether `key`, a facet of a cofacet of the frontier, is neither in S nor in the rim.
@@ -909,7 +922,7 @@ fn distinct<const W: usize>(cands: &[Candidate<W>], rows: &[u32], n: usize) -> D
         }
         out
     };
-    let threads = rayon::current_num_threads();
+    let threads = crate::threads::threads();
     let chunk = cands.len().div_ceil(4 * threads).max(DISTINCT_CHUNK);
     if threads == 1 || cands.len() <= chunk {
         return one(0..cands.len());

@@ -29,6 +29,7 @@ pub mod scan;
 mod seeds;
 mod seen;
 mod sorting;
+mod step_threads;
 mod table;
 mod warm;
 
@@ -270,6 +271,19 @@ impl LevelSteps {
     pub(crate) fn add(step: &mut f64, since: std::time::Instant) {
         *step += since.elapsed().as_secs_f64();
     }
+
+    /// The time of the level steps `step` is part of (none for a whole level).
+    pub(crate) fn of(&mut self, step: step_threads::Step) -> Option<&mut f64> {
+        use step_threads::Step;
+        match step {
+            Step::Naming => Some(&mut self.naming),
+            Step::Caching | Step::NamingDeferred => Some(&mut self.new_vertices),
+            Step::Ordering => Some(&mut self.ordering),
+            Step::Deciding => Some(&mut self.deciding),
+            Step::Gathering | Step::Accepting => Some(&mut self.accepting),
+            Step::Level => None,
+        }
+    }
 }
 
 impl TraceStats {
@@ -329,6 +343,8 @@ pub(crate) struct TraceContext<'a> {
     pub max_memory: u64,
     pub cancel: Option<&'a AtomicBool>,
     pub progress: Option<&'a (dyn Fn(&Progress) + Sync)>,
+    /// How a level's steps choose their threads (tests choose other ways).
+    pub step_threads: step_threads::Policy,
     /// Makes the pivot name a wrong facet, to test the fallback (unit tests only).
     #[cfg(test)]
     pub scramble_pivots: bool,
@@ -420,6 +436,7 @@ fn context<'a>(
         max_memory: opts.max_memory,
         cancel: opts.cancel.as_deref(),
         progress: opts.progress,
+        step_threads: step_threads::Policy::default(),
         #[cfg(test)]
         scramble_pivots: false,
         #[cfg(test)]
@@ -569,6 +586,34 @@ mod tests {
             assert_eq!(wrong.stats.oracle_calls, wrong_sliced.stats.oracle_calls);
             for other in [&wrong, &wrong_sliced] {
                 assert_same_sample(&right, other, name);
+            }
+        }
+    }
+
+    /// A level's steps give the same trace on all the pool's threads as on one: with every
+    /// level, and every step of the levels not run alone, switching ways in turn, S, its
+    /// order and points, and the counters are those of a one-thread pool.
+    #[test]
+    fn steps_switching_between_one_thread_and_all_give_the_same_trace() {
+        for (name, edge) in [
+            ("sphere", 0.05),
+            ("chair", 0.1),
+            ("flat-torus", 0.3),
+            ("3-torus", 0.8),
+        ] {
+            let one = crate::test_pool(1).install(|| traced_with(name, edge, |_| {}).0);
+            let (plain, switching) = crate::test_pool(3).install(|| {
+                traced_with(name, edge, |c| {
+                    c.step_threads = step_threads::Policy::Alternate;
+                })
+            });
+            for other in [&plain, &switching[0], &switching[1]] {
+                assert_same_sample(&one, other, name);
+                let (a, b) = (&one.stats, &other.stats);
+                assert_eq!(a.vertices, b.vertices, "{name}");
+                assert_eq!(a.oracle_calls, b.oracle_calls, "{name}");
+                assert_eq!(a.levels, b.levels, "{name}");
+                assert_eq!(a.widest_level, b.widest_level, "{name}");
             }
         }
     }

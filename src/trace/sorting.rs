@@ -77,7 +77,7 @@ pub(crate) fn distinct_ranks<K: Ord + Hash + Copy + Send + Sync>(
 
 /// How many chunks (and pieces) a sort of `len` items uses; `None` to sort on one thread.
 fn pieces(len: usize) -> Option<usize> {
-    let threads = rayon::current_num_threads();
+    let threads = crate::threads::threads();
     (threads > 1 && len >= PAR_SORT_MIN).then(|| (2 * threads).min(len / 64).max(2))
 }
 

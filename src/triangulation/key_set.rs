@@ -268,7 +268,7 @@ impl<N: Width> KeySet<N> {
         let (arena, hasher) = (&self.arena, &self.hasher);
         let rehash = |&j: &u32| hasher.hash_one(&arena[j as usize * w..(j as usize + 1) * w]);
         let keys = &arena[start * w..(start + count) * w];
-        if count < PAR_BATCH {
+        if count < PAR_BATCH || crate::threads::threads() == 1 {
             for (i, key) in keys.chunks_exact(w).enumerate() {
                 let h = hasher.hash_one(key);
                 // Positions were checked when the keys were pushed.
