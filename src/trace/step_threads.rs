@@ -14,8 +14,8 @@
 //! simplex against the level before it says which way is cheaper: the step moves over
 //! when two probes in a row find the other way cheaper by [`SWITCH`]. While they find it
 //! dearer, it probes less often, and the less the dearer they find it ([`PROBE_COST`]),
-//! down to one level in [`MAX_INTERVAL`]. The
-//! output does not depend on the way: a step's result is the same on any number of threads.
+//! down to one level in [`MAX_INTERVAL`]. The output does not depend on the way: a step's
+//! result is the same on any number of threads.
 
 use std::time::Duration;
 
@@ -40,7 +40,8 @@ pub(crate) enum Step {
     Level,
 }
 
-const STEPS: usize = 8;
+/// How many [`Step`]s there are.
+const STEPS: usize = Step::Level as usize + 1;
 
 /// Levels between probes at first, and after a move.
 const MIN_INTERVAL: u32 = 8;
